@@ -1,0 +1,19 @@
+//! The ACCH core: colour palette and quantisation, colour cooccurrence
+//! histograms (CCH, DCCH, ACCH), histogram intersection and the view database.
+//!
+//! Everything here is a pure algorithm on plain buffers: no I/O besides the
+//! database file, no IPC, no image crate. Frames arrive as packed RGB bytes,
+//! masks as one byte per pixel (non-zero = object).
+
+#![warn(missing_docs)]
+
+pub mod database;
+pub mod histogram;
+pub mod palette;
+
+pub use database::{DbError, View, ViewDatabase};
+pub use histogram::{
+    HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
+    match_value,
+};
+pub use palette::{ColourSpace, IndexImage, NOT_OBJECT, Palette, PaletteError};
