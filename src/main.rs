@@ -1,6 +1,7 @@
 //! `acch`: train view databases, estimate 2-DOF poses, evaluate, and run the pipeline.
 
 mod cmd;
+mod plot;
 
 use clap::{Parser, Subcommand};
 
@@ -17,6 +18,14 @@ struct Cli {
 enum Command {
     /// Render views of an object with ground truth (images, masks, labels.csv).
     Render(cmd::render::RenderArgs),
+    /// Train a view database from a rendered object or labelled images.
+    Train(cmd::train::TrainArgs),
+    /// Estimate the 2-DOF pose of the object in an image.
+    Estimate(cmd::estimate::EstimateArgs),
+    /// Write an image's histogram as a NumPy .npy array.
+    Features(cmd::features::FeaturesArgs),
+    /// Evaluate accuracy with a reproducible protocol (paper table 1).
+    Eval(cmd::eval::EvalArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -30,6 +39,10 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => cmd::render::run(args),
+        Command::Train(args) => cmd::train::run(args),
+        Command::Eval(args) => cmd::eval::run(args),
+        Command::Estimate(args) => cmd::estimate::run(args),
+        Command::Features(args) => cmd::features::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

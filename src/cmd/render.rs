@@ -1,11 +1,337 @@
-//! `acch render` (placeholder until the renderer lands).
-use clap::Args;
+//! `acch render`: render views of an object with ground truth into a folder
+//! (images, masks, `labels.csv`, `truth.jsonl`) and optionally a contact sheet.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use acch_capture::labels::{LabelRow, write_labels};
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Object, Rendered, Renderer,
+    SceneConfig, UpAxis, ViewSpec, check_distance, derive_seed,
+};
+use anyhow::{Context, Result, bail};
+use clap::{ArgGroup, Args};
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder, RgbImage};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
 
 /// Arguments of `acch render`.
-#[derive(Args)]
-pub struct RenderArgs {}
+#[derive(Args, Debug)]
+#[command(group(ArgGroup::new("source").required(true).args(["object", "mesh"])))]
+pub struct RenderArgs {
+    /// Built-in object to render: fruitbox (printed cereal-style box), can
+    /// (cylinder with an asymmetric label) or tricolor (untextured, three colours).
+    #[arg(long, value_name = "NAME")]
+    object: Option<String>,
+
+    /// Textured OBJ mesh to render instead of a built-in object. It needs
+    /// texture coordinates and an MTL material with a map_Kd texture (PNG,
+    /// path relative to the MTL file); it is scaled to bounding radius 1.
+    #[arg(long, value_name = "FILE.obj")]
+    mesh: Option<PathBuf>,
+
+    /// Which axis of the mesh file points up: +y (the OBJ convention), -y,
+    /// +z, -z, +x or -x.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "+y",
+        allow_hyphen_values = true
+    )]
+    mesh_up: UpAxis,
+
+    /// Views to render. grid:THETAS:PHI_STEP renders every azimuth 0, STEP,
+    /// ... < 360 for each comma-separated elevation (degrees, 0-90), theta
+    /// slice by theta slice; random:N draws N views with elevation uniform in
+    /// [45, 90] and azimuth in [0, 360) from --seed.
+    #[arg(long, value_name = "SPEC", default_value = "grid:45,50,60,70,80,90:10")]
+    views: ViewSpec,
+
+    /// Background: plain (homogeneous grey), plain:R,G,B (homogeneous colour),
+    /// A (yellowish wood), B (blue fabric), C (green felt), clutter (table with
+    /// 3-6 distractor objects) or clutter-similar (distractors in the object's
+    /// own colours).
+    #[arg(long, value_name = "NAME", default_value = "plain")]
+    background: Background,
+
+    /// Seed for random views, the clutter layout and the per-view noise.
+    /// The same command line always writes the same bytes.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    seed: u64,
+
+    /// Output directory (created if missing; existing files are overwritten).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+
+    /// Also write all views tiled as thumbnails (18 per row) into this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    contact_sheet: Option<PathBuf>,
+
+    /// Camera distance from the object centre, in object bounding radii.
+    #[arg(long, value_name = "R", default_value_t = DEFAULT_DISTANCE, allow_negative_numbers = true)]
+    distance: f64,
+
+    /// Sensor noise: standard deviation of additive per-channel noise in grey
+    /// levels (0-255). 0 = none.
+    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    noise: f32,
+
+    /// Gaussian blur: standard deviation in pixels. 0 = none.
+    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    blur: f32,
+
+    /// Brightness factor applied to every pixel (exposure change). 1 = unchanged.
+    #[arg(long, value_name = "B", default_value_t = 1.0, allow_negative_numbers = true)]
+    brightness: f32,
+
+    /// Image width in pixels.
+    #[arg(long, value_name = "PX", default_value_t = 640)]
+    width: u32,
+
+    /// Image height in pixels.
+    #[arg(long, value_name = "PX", default_value_t = 480)]
+    height: u32,
+
+    /// Focal length in pixels (fx = fy); the principal point is the image centre.
+    #[arg(long, value_name = "PX", default_value_t = 500.0)]
+    focal: f64,
+}
+
+/// Thumbnails in a contact sheet row.
+const SHEET_COLUMNS: usize = 18;
+/// Target thumbnail width in pixels.
+const THUMB_WIDTH: u32 = 128;
+/// Gap between thumbnails in the contact sheet.
+const SHEET_GAP: u32 = 2;
 
 /// Runs `acch render`.
-pub fn run(_args: RenderArgs) -> anyhow::Result<()> {
-    anyhow::bail!("not yet implemented")
+pub fn run(args: RenderArgs) -> Result<()> {
+    check_distance(args.distance).context("--distance")?;
+    for (name, v) in [
+        ("--noise", args.noise),
+        ("--blur", args.blur),
+        ("--brightness", args.brightness),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("{name} {v} must be a finite number >= 0");
+        }
+    }
+    let intrinsics = Intrinsics {
+        width: args.width,
+        height: args.height,
+        fx: args.focal,
+        fy: args.focal,
+        cx: (args.width as f64 - 1.0) / 2.0,
+        cy: (args.height as f64 - 1.0) / 2.0,
+    };
+    intrinsics.validate()?;
+
+    let object = match (&args.object, &args.mesh) {
+        (Some(name), _) => Object::builtin(name)?,
+        (None, Some(path)) => Object::load_obj_with_up(path, args.mesh_up)?,
+        (None, None) => bail!("give --object NAME or --mesh FILE.obj"),
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create output directory {}", args.out.display()))?;
+
+    let views = args.views.views(args.distance, args.seed);
+    let config = SceneConfig {
+        object: Arc::new(object),
+        background: args.background,
+        intrinsics,
+        effects: Effects {
+            noise_sigma: args.noise,
+            blur_sigma: args.blur,
+            brightness: args.brightness,
+        },
+    };
+    let start = Instant::now();
+    let renderer = Renderer::new(config, args.seed);
+    let object_name = renderer.config().object.name().to_string();
+    tracing::info!(
+        object = %object_name,
+        background = %args.background,
+        views = views.len(),
+        distractors = renderer.distractor_count(),
+        "rendering into {}",
+        args.out.display()
+    );
+
+    let progress = ProgressBar::new(views.len() as u64);
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} rendering {bar:40} {pos}/{len} views ({eta})")
+            .expect("static template is valid"),
+    );
+    let want_thumbs = args.contact_sheet.is_some();
+    let digits = (views.len().max(1) - 1).to_string().len().max(4);
+    let results: Vec<(LabelRow, GroundTruth, u64, Option<RgbImage>)> = views
+        .par_iter()
+        .enumerate()
+        .map_init(Rendered::default, |frame, (i, view)| {
+            let frame_seed = derive_seed(args.seed, i as u64);
+            renderer.render_into(view, frame_seed, frame);
+            let file = format!("view_{i:0digits$}.png");
+            let mask = format!("view_{i:0digits$}_mask.png");
+            write_png(
+                &args.out.join(&file),
+                frame.image.as_raw(),
+                frame.image.dimensions(),
+                ExtendedColorType::Rgb8,
+            )?;
+            write_png(
+                &args.out.join(&mask),
+                frame.mask.as_raw(),
+                frame.mask.dimensions(),
+                ExtendedColorType::L8,
+            )?;
+            let thumb = want_thumbs.then(|| thumbnail(&frame.image));
+            progress.inc(1);
+            Ok((
+                LabelRow::from_truth(file, Some(mask), &frame.truth),
+                frame.truth.clone(),
+                frame_seed,
+                thumb,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    progress.finish_and_clear();
+
+    let labels_path = args.out.join("labels.csv");
+    let rows: Vec<LabelRow> = results.iter().map(|r| r.0.clone()).collect();
+    write_labels(&labels_path, &rows)?;
+    let truth_path = args.out.join("truth.jsonl");
+    write_truth(&truth_path, &results, &object_name, &args)?;
+    if let Some(sheet) = &args.contact_sheet {
+        let thumbs: Vec<&RgbImage> = results.iter().filter_map(|r| r.3.as_ref()).collect();
+        write_contact_sheet(sheet, &thumbs)?;
+    }
+    let visible = results.iter().filter(|r| r.1.bbox.is_some()).count();
+    tracing::info!(
+        "wrote {} views ({} with the object visible) to {} in {:.2} s",
+        results.len(),
+        visible,
+        args.out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Writes a PNG with fast compression (encoding dominates the run time otherwise).
+fn write_png(
+    path: &Path,
+    bytes: &[u8],
+    (width, height): (u32, u32),
+    color: ExtendedColorType,
+) -> Result<()> {
+    let write = || -> Result<()> {
+        let mut w = BufWriter::new(File::create(path)?);
+        PngEncoder::new_with_quality(&mut w, CompressionType::Fast, FilterType::Adaptive)
+            .write_image(bytes, width, height, color)?;
+        w.flush()?;
+        Ok(())
+    };
+    write().with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The full ground truth, one JSON object per view.
+fn write_truth(
+    path: &Path,
+    results: &[(LabelRow, GroundTruth, u64, Option<RgbImage>)],
+    object: &str,
+    args: &RenderArgs,
+) -> Result<()> {
+    let write = || -> Result<()> {
+        let mut w = BufWriter::new(File::create(path)?);
+        for (i, (row, truth, frame_seed, _)) in results.iter().enumerate() {
+            let m = truth.world_from_camera;
+            let (r, t) = (m.matrix3, m.translation);
+            let matrix = [
+                [r.x_axis.x, r.y_axis.x, r.z_axis.x, t.x],
+                [r.x_axis.y, r.y_axis.y, r.z_axis.y, t.y],
+                [r.x_axis.z, r.y_axis.z, r.z_axis.z, t.z],
+                [0.0, 0.0, 0.0, 1.0],
+            ];
+            let line = serde_json::json!({
+                "index": i,
+                "file": row.file,
+                "mask": row.mask,
+                "object": object,
+                "background": args.background.to_string(),
+                "theta_deg": truth.theta_deg,
+                "phi_deg": truth.phi_deg,
+                "distance": truth.distance,
+                "intrinsics": truth.intrinsics,
+                "world_from_camera": matrix,
+                "bbox": truth.bbox,
+                "scene_seed": args.seed,
+                "frame_seed": frame_seed,
+                "effects": {"noise": args.noise, "blur": args.blur, "brightness": args.brightness},
+            });
+            serde_json::to_writer(&mut w, &line)?;
+            w.write_all(b"\n")?;
+        }
+        w.flush()?;
+        Ok(())
+    };
+    write().with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// A box-filtered thumbnail about [`THUMB_WIDTH`] wide.
+fn thumbnail(img: &RgbImage) -> RgbImage {
+    let f = (img.width() / THUMB_WIDTH).max(1);
+    let (tw, th) = ((img.width() / f).max(1), (img.height() / f).max(1));
+    RgbImage::from_fn(tw, th, |x, y| {
+        let mut acc = [0u32; 3];
+        for dy in 0..f {
+            for dx in 0..f {
+                let p = img.get_pixel(
+                    (x * f + dx).min(img.width() - 1),
+                    (y * f + dy).min(img.height() - 1),
+                );
+                for c in 0..3 {
+                    acc[c] += p[c] as u32;
+                }
+            }
+        }
+        let n = f * f;
+        image::Rgb(acc.map(|a| ((a + n / 2) / n) as u8))
+    })
+}
+
+/// Tiles thumbnails [`SHEET_COLUMNS`] per row, in view order.
+fn write_contact_sheet(path: &Path, thumbs: &[&RgbImage]) -> Result<()> {
+    let Some(first) = thumbs.first() else {
+        bail!("no views to put on the contact sheet {}", path.display());
+    };
+    let (tw, th) = first.dimensions();
+    let cols = SHEET_COLUMNS.min(thumbs.len()) as u32;
+    let rows = thumbs.len().div_ceil(SHEET_COLUMNS) as u32;
+    let mut sheet = RgbImage::from_pixel(
+        cols * (tw + SHEET_GAP) + SHEET_GAP,
+        rows * (th + SHEET_GAP) + SHEET_GAP,
+        image::Rgb([32, 32, 32]),
+    );
+    for (i, t) in thumbs.iter().enumerate() {
+        let (c, r) = ((i % SHEET_COLUMNS) as u32, (i / SHEET_COLUMNS) as u32);
+        image::imageops::replace(
+            &mut sheet,
+            *t,
+            (SHEET_GAP + c * (tw + SHEET_GAP)) as i64,
+            (SHEET_GAP + r * (th + SHEET_GAP)) as i64,
+        );
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create directory {}", dir.display()))?;
+    }
+    write_png(
+        path,
+        sheet.as_raw(),
+        sheet.dimensions(),
+        ExtendedColorType::Rgb8,
+    )
 }

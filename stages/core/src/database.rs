@@ -52,7 +52,9 @@ pub enum DbError {
         path: PathBuf,
     },
     /// Written by another format version.
-    #[error("{path}: database format version {found} is not supported (this build reads version {supported}); retrain it with `acch train`")]
+    #[error(
+        "{path}: database format version {found} is not supported (this build reads version {supported}); retrain it with `acch train`"
+    )]
     UnsupportedVersion {
         /// The file.
         path: PathBuf,
@@ -110,7 +112,12 @@ pub struct ViewDatabase {
 
 impl ViewDatabase {
     /// An empty database.
-    pub fn new(object: &str, palette: Palette, params: HistogramParams, train_distance: f32) -> Self {
+    pub fn new(
+        object: &str,
+        palette: Palette,
+        params: HistogramParams,
+        train_distance: f32,
+    ) -> Self {
         ViewDatabase {
             object: object.to_owned(),
             palette,
@@ -372,8 +379,8 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
     let object = r.string("the object name")?;
     let train_distance = r.finite("the training distance")?;
     let space_id = r.u8("the colour space")?;
-    let space =
-        ColourSpace::from_id(space_id).ok_or_else(|| format!("unknown colour space id {space_id}"))?;
+    let space = ColourSpace::from_id(space_id)
+        .ok_or_else(|| format!("unknown colour space id {space_id}"))?;
     let n_colours = r.u16("the palette size")? as usize;
     let reject = r.f32("the palette rejection distance")?;
     let mut centres = Vec::with_capacity(n_colours.min(256));
@@ -384,9 +391,11 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
             r.finite("a palette colour")?,
         ]);
     }
-    let palette = Palette::from_centres(space, centres, reject).map_err(|e| format!("palette: {e}"))?;
+    let palette =
+        Palette::from_centres(space, centres, reject).map_err(|e| format!("palette: {e}"))?;
     let kind_id = r.u8("the histogram kind")?;
-    let kind = HistogramKind::from_id(kind_id).ok_or_else(|| format!("unknown histogram kind id {kind_id}"))?;
+    let kind = HistogramKind::from_id(kind_id)
+        .ok_or_else(|| format!("unknown histogram kind id {kind_id}"))?;
     let colours = r.u16("the histogram colours")?;
     let bins = r.u16("the histogram bins")?;
     let r_min = r.f32("r_min")?;
@@ -547,7 +556,10 @@ mod tests {
         assert!(matches!(e, DbError::UnsupportedVersion { found: 9, .. }));
         assert!(e.to_string().contains("db.acchdb"), "{e}");
         for cut in [10, HEADER_LEN, bytes.len() - 1] {
-            assert!(matches!(err(&bytes[..cut]), DbError::Truncated { .. }), "cut at {cut}");
+            assert!(
+                matches!(err(&bytes[..cut]), DbError::Truncated { .. }),
+                "cut at {cut}"
+            );
         }
         let mut v = bytes.clone();
         let last = v.len() - 5;

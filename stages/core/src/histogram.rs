@@ -206,8 +206,11 @@ impl HistogramParams {
                     let r = r_min + (r_max - r_min) * (ring as f32 + 0.5) / rings as f32;
                     for k in 0..angles {
                         let a = (k as f32 + 0.5) * PI / angles as f32;
-                        let (dx, dy) = ((r * a.cos()).round() as i32, -(r * a.sin()).round() as i32);
-                        if (dx, dy) == (0, 0) || out.iter().any(|o: &(i32, i32, u16)| (o.0, o.1) == (dx, dy)) {
+                        let (dx, dy) =
+                            ((r * a.cos()).round() as i32, -(r * a.sin()).round() as i32);
+                        if (dx, dy) == (0, 0)
+                            || out.iter().any(|o: &(i32, i32, u16)| (o.0, o.1) == (dx, dy))
+                        {
                             continue;
                         }
                         // Bin by the nominal orientation: rounding must not
@@ -368,12 +371,20 @@ impl HistogramExtractor {
                 Some(m) => {
                     let m_row = &m[src..src + w];
                     for ((d, &s), &k) in dst_row.iter_mut().zip(src_row).zip(m_row) {
-                        *d = if k != 0 && (s as usize) < colours { s } else { NOT_OBJECT };
+                        *d = if k != 0 && (s as usize) < colours {
+                            s
+                        } else {
+                            NOT_OBJECT
+                        };
                     }
                 }
                 None => {
                     for (d, &s) in dst_row.iter_mut().zip(src_row) {
-                        *d = if (s as usize) < colours { s } else { NOT_OBJECT };
+                        *d = if (s as usize) < colours {
+                            s
+                        } else {
+                            NOT_OBJECT
+                        };
                     }
                 }
             }
@@ -455,7 +466,13 @@ pub fn match_value(h1: &[f32], h2: &[f32]) -> f32 {
 mod tests {
     use super::*;
 
-    fn params(kind: HistogramKind, colours: u16, bins: u16, r_min: f32, r_max: f32) -> HistogramParams {
+    fn params(
+        kind: HistogramKind,
+        colours: u16,
+        bins: u16,
+        r_min: f32,
+        r_max: f32,
+    ) -> HistogramParams {
         HistogramParams {
             kind,
             colours,
@@ -467,7 +484,11 @@ mod tests {
         }
     }
 
-    fn counts(e: &mut HistogramExtractor, img: &IndexImage, mask: Option<&[u8]>) -> (Vec<f32>, u64) {
+    fn counts(
+        e: &mut HistogramExtractor,
+        img: &IndexImage,
+        mask: Option<&[u8]>,
+    ) -> (Vec<f32>, u64) {
         let mut h = vec![0.0; e.params().len()];
         let n = e.extract(img, mask, Rect::full(img.width, img.height), 1.0, &mut h);
         (h.iter().map(|v| (v * n as f32).round()).collect(), n)
@@ -590,12 +611,29 @@ mod tests {
         let mut h1 = vec![0.0; e.params().len()];
         let mut h2 = h1.clone();
         e.extract(&img, None, Rect::full(8, 8), 1.0, &mut h1);
-        e.extract(&img, None, Rect { x: 0, y: 0, width: 5, height: 8 }, 1.0, &mut h2);
-        assert!((intersection(&h1, &h1) - 1.0).abs() < 1e-5, "self-match is 1");
+        e.extract(
+            &img,
+            None,
+            Rect {
+                x: 0,
+                y: 0,
+                width: 5,
+                height: 8,
+            },
+            1.0,
+            &mut h2,
+        );
+        assert!(
+            (intersection(&h1, &h1) - 1.0).abs() < 1e-5,
+            "self-match is 1"
+        );
         assert!((match_value(&h1, &h1) - 1.0).abs() < 1e-5);
         let m = match_value(&h1, &h2);
         assert!(m > 0.0 && m <= 1.0 + 1e-6, "bounded by 1: {m}");
-        assert!((intersection(&h1, &h2) - intersection(&h2, &h1)).abs() < 1e-6, "symmetric");
+        assert!(
+            (intersection(&h1, &h2) - intersection(&h2, &h1)).abs() < 1e-6,
+            "symmetric"
+        );
         assert_eq!(match_value(&vec![0.0; h1.len()], &h1), 0.0);
     }
 
@@ -606,7 +644,10 @@ mod tests {
         for bad in [
             HistogramParams { colours: 0, ..ok },
             HistogramParams { bins: 0, ..ok },
-            HistogramParams { r_min: f32::NAN, ..ok },
+            HistogramParams {
+                r_min: f32::NAN,
+                ..ok
+            },
             HistogramParams { r_min: -1.0, ..ok },
             HistogramParams { r_max: 5.0, ..ok },
             HistogramParams { stride: 0, ..ok },
@@ -621,7 +662,9 @@ mod tests {
         let near = p.offsets(1.0);
         let far = p.offsets(2.0);
         let max_r = |o: &[(i32, i32, u16)]| {
-            o.iter().map(|&(x, y, _)| ((x * x + y * y) as f32).sqrt()).fold(0.0, f32::max)
+            o.iter()
+                .map(|&(x, y, _)| ((x * x + y * y) as f32).sqrt())
+                .fold(0.0, f32::max)
         };
         assert!(max_r(&near) <= 20.5 && max_r(&far) > 30.0);
         // Polar sampling keeps the cost constant across scales.

@@ -58,7 +58,9 @@ impl std::str::FromStr for ColourSpace {
         match s.to_ascii_lowercase().as_str() {
             "rgb" => Ok(ColourSpace::Rgb),
             "lab" => Ok(ColourSpace::Lab),
-            other => Err(format!("unknown colour space '{other}' (expected rgb or lab)")),
+            other => Err(format!(
+                "unknown colour space '{other}' (expected rgb or lab)"
+            )),
         }
     }
 }
@@ -248,7 +250,11 @@ impl Palette {
     /// reusing its buffer.
     pub fn quantise_into(&self, rgb: &[u8], width: u32, height: u32, out: &mut IndexImage) {
         let n = width as usize * height as usize;
-        assert_eq!(rgb.len(), n * 3, "RGB buffer does not match {width}x{height}");
+        assert_eq!(
+            rgb.len(),
+            n * 3,
+            "RGB buffer does not match {width}x{height}"
+        );
         out.width = width;
         out.height = height;
         out.data.resize(n, NOT_OBJECT);
@@ -451,7 +457,10 @@ mod tests {
         for rgb in [[0, 0, 0], [255, 255, 255], [200, 30, 40], [10, 120, 250]] {
             let back = lab_to_srgb(srgb_to_lab(rgb));
             for c in 0..3 {
-                assert!((back[c] as i32 - rgb[c] as i32).abs() <= 1, "{rgb:?} -> {back:?}");
+                assert!(
+                    (back[c] as i32 - rgb[c] as i32).abs() <= 1,
+                    "{rgb:?} -> {back:?}"
+                );
             }
         }
     }
@@ -467,7 +476,11 @@ mod tests {
         }
         for space in [ColourSpace::Rgb, ColourSpace::Lab] {
             let p = Palette::train(&pixels, 3, space, None, 7).unwrap();
-            let (r, g, b) = (p.index([255, 0, 0]), p.index([0, 255, 0]), p.index([0, 0, 255]));
+            let (r, g, b) = (
+                p.index([255, 0, 0]),
+                p.index([0, 255, 0]),
+                p.index([0, 0, 255]),
+            );
             assert!(r != g && g != b && r != b, "{space:?}: {r} {g} {b}");
             assert_eq!(p.index([245, 4, 4]), r);
         }
@@ -499,7 +512,10 @@ mod tests {
         let pixels = [[255u8, 0, 0], [0, 0, 255]];
         let p = Palette::from_centres(
             ColourSpace::Rgb,
-            pixels.iter().map(|&c| ColourSpace::Rgb.convert(c)).collect(),
+            pixels
+                .iter()
+                .map(|&c| ColourSpace::Rgb.convert(c))
+                .collect(),
             f32::INFINITY,
         )
         .unwrap();

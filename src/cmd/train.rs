@@ -1,0 +1,144 @@
+//! `acch train`: build a view database from a rendered object or from a
+//! folder of labelled images.
+
+use super::common::{self, HistogramArgs, ObjectArgs};
+use acch_capture::{Background, DEFAULT_DISTANCE, ViewSpec, labels};
+use acch_core::ViewDatabase;
+use acch_pose::train::{LabelledView, TrainConfig, build_database};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `acch train`.
+#[derive(Args)]
+pub struct TrainArgs {
+    #[command(flatten)]
+    object: ObjectArgs,
+    /// Train from real images instead: a folder with labels.csv (file,
+    /// theta_deg, phi_deg, distance, bbox, mask) as `acch render` writes it.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["object", "mesh"])]
+    images: Option<PathBuf>,
+    /// Training views: grid:THETAS:PHI_STEP or random:N.
+    #[arg(long, default_value = "grid:45,50,60,70,80,90:10")]
+    views: ViewSpec,
+    /// Background of the rendered training views.
+    #[arg(long, default_value = "plain")]
+    background: Background,
+    /// Camera distance of rendered views, in object bounding radii.
+    #[arg(long, default_value_t = DEFAULT_DISTANCE)]
+    distance: f64,
+    /// Seed of the rendered views.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[command(flatten)]
+    histogram: HistogramArgs,
+    /// Output database file.
+    #[arg(long, value_name = "FILE.acchdb")]
+    out: PathBuf,
+}
+
+/// Runs `acch train`.
+pub fn run(args: TrainArgs) -> Result<()> {
+    let config = args.histogram.train_config()?;
+    let start = std::time::Instant::now();
+    let db = match &args.images {
+        Some(dir) => train_from_folder(dir, &config)?,
+        None => {
+            let object = args.object.load()?;
+            let views = args.views.views(args.distance, args.seed);
+            let renderer = common::renderer(object.clone(), args.background.clone(), args.seed);
+            let renders = common::render_views(&renderer, &views, args.seed, "rendering");
+            let labelled: Vec<LabelledView> = renders
+                .iter()
+                .map(|r| common::labelled(r, args.distance))
+                .collect();
+            build_database(object.name(), args.distance as f32, &labelled, &config)?
+        }
+    };
+    db.save(&args.out)?;
+    println!(
+        "trained {} views of '{}' ({} colours, {} bins of {}) in {:.1} s -> {}",
+        db.views().len(),
+        db.object,
+        db.palette.len(),
+        db.params.len(),
+        db.params.kind,
+        start.elapsed().as_secs_f64(),
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Trains from `DIR/labels.csv` and the images (and masks) it names. Views
+/// without a mask use their bounding box, or the whole image.
+pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabase> {
+    let rows = labels::read_labels(&dir.join("labels.csv"))?;
+    if rows.is_empty() {
+        bail!("{}: no rows", dir.join("labels.csv").display());
+    }
+    let mut distances: Vec<f64> = rows.iter().map(|r| r.distance).collect();
+    distances.sort_by(f64::total_cmp);
+    let train_distance = distances[distances.len() / 2];
+    let bar = common::progress(rows.len() as u64, "loading");
+    let mut images = Vec::with_capacity(rows.len());
+    for row in &rows {
+        let path = dir.join(&row.file);
+        let rgb = image::open(&path)
+            .with_context(|| format!("reading image {}", path.display()))?
+            .to_rgb8();
+        let (w, h) = rgb.dimensions();
+        let mask = match (&row.mask, &row.bbox) {
+            (Some(m), _) => {
+                let mpath = dir.join(m);
+                let mask = image::open(&mpath)
+                    .with_context(|| format!("reading mask {}", mpath.display()))?
+                    .to_luma8();
+                if mask.dimensions() != (w, h) {
+                    bail!(
+                        "{}: mask is {}x{} but its image {} is {w}x{h}",
+                        mpath.display(),
+                        mask.width(),
+                        mask.height(),
+                        path.display()
+                    );
+                }
+                mask.into_raw()
+            }
+            (None, Some(b)) => {
+                let mut m = vec![0u8; (w * h) as usize];
+                for y in b.y..(b.y + b.height).min(h) {
+                    for x in b.x..(b.x + b.width).min(w) {
+                        m[(y * w + x) as usize] = 255;
+                    }
+                }
+                m
+            }
+            (None, None) => vec![255u8; (w * h) as usize],
+        };
+        images.push((rgb, mask, row));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let labelled: Vec<LabelledView> = images
+        .iter()
+        .map(|(rgb, mask, row)| LabelledView {
+            rgb: rgb.as_raw(),
+            mask,
+            width: rgb.width(),
+            height: rgb.height(),
+            theta_deg: row.theta_deg as f32,
+            phi_deg: row.phi_deg as f32,
+            scale: (train_distance / row.distance) as f32,
+        })
+        .collect();
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "object".into());
+    Ok(build_database(
+        &name,
+        train_distance as f32,
+        &labelled,
+        config,
+    )?)
+}

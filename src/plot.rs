@@ -1,0 +1,142 @@
+//! PNG plots for people: the match-value response (like the paper's figures
+//! 3 and 6), drawn with plotters into a buffer and saved with `image`.
+
+use anyhow::{Context, Result, anyhow};
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+/// Plotters needs a font; the embedded one makes plots work on machines
+/// without any installed.
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // Registration only fails on unparsable font bytes, which are fixed here.
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        );
+    });
+}
+
+/// Draws into a white RGB canvas and writes it as PNG.
+pub fn draw_png(
+    path: &Path,
+    (w, h): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<()>,
+) -> Result<()> {
+    register_font();
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+        draw(&root)?;
+        root.present().map_err(|e| anyhow!("{e}"))?;
+    }
+    image::RgbImage::from_raw(w, h, buf)
+        .expect("buffer matches its size")
+        .save(path)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// One θ slice of a response plot: its first view index, length and θ.
+pub struct SliceMark {
+    /// First view index.
+    pub start: usize,
+    /// Number of views.
+    pub len: usize,
+    /// Elevation, degrees.
+    pub theta_deg: f32,
+}
+
+/// Plots the response over the view index with the θ slices shaded and
+/// labelled, the best view marked, and the true view when known.
+pub fn response_plot(
+    path: &Path,
+    title: &str,
+    response: &[f32],
+    slices: &[SliceMark],
+    best: usize,
+    truth: Option<usize>,
+) -> Result<()> {
+    let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+    draw_png(path, (1000, 420), |root| {
+        let lo = response
+            .iter()
+            .copied()
+            .fold(f32::INFINITY, f32::min)
+            .min(1.0);
+        let y0 = (lo - 0.05).max(0.0);
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0f32..response.len() as f32, y0..1.0f32)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_desc("training view (θ slice by θ slice, φ ascending)")
+            .y_desc("match value")
+            .draw()
+            .map_err(e)?;
+        for (k, s) in slices.iter().enumerate() {
+            let shade = if k % 2 == 0 {
+                RGBColor(236, 240, 248)
+            } else {
+                WHITE
+            };
+            let (a, b) = (s.start as f32 - 0.5, (s.start + s.len) as f32 - 0.5);
+            chart
+                .draw_series(std::iter::once(Rectangle::new(
+                    [(a, y0), (b, 1.0)],
+                    shade.filled(),
+                )))
+                .map_err(e)?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    format!("θ={}", s.theta_deg),
+                    (a + 1.0, 0.985),
+                    ("sans-serif", 14),
+                )))
+                .map_err(e)?;
+        }
+        chart
+            .draw_series(LineSeries::new(
+                response.iter().enumerate().map(|(i, &v)| (i as f32, v)),
+                BLUE.stroke_width(2),
+            ))
+            .map_err(e)?;
+        if let Some(t) = truth {
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(t as f32, y0), (t as f32, 1.0)],
+                    GREEN.stroke_width(2),
+                )))
+                .map_err(e)?
+                .label("nearest view to the truth")
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], GREEN.stroke_width(2))
+                });
+        }
+        chart
+            .draw_series(std::iter::once(Circle::new(
+                (best as f32, response[best]),
+                6,
+                RED.filled(),
+            )))
+            .map_err(e)?
+            .label("best view")
+            .legend(|(x, y)| Circle::new((x + 9, y), 5, RED.filled()));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
+        Ok(())
+    })
+}

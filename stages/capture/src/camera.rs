@@ -1,0 +1,179 @@
+//! Pinhole intrinsics and camera poses on the view sphere.
+
+use glam::{DAffine3, DMat3, DVec2, DVec3};
+use serde::{Deserialize, Serialize};
+
+use crate::CaptureError;
+
+/// Default camera distance from the object centre, in object bounding radii.
+pub const DEFAULT_DISTANCE: f64 = 5.0;
+
+/// Pinhole camera intrinsics (no lens distortion). Pixel centres lie at integer
+/// coordinates: pixel (0, 0) covers [-0.5, 0.5] x [-0.5, 0.5].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Intrinsics {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Focal length in pixels along x.
+    pub fx: f64,
+    /// Focal length in pixels along y.
+    pub fy: f64,
+    /// Principal point x in pixels.
+    pub cx: f64,
+    /// Principal point y in pixels.
+    pub cy: f64,
+}
+
+impl Default for Intrinsics {
+    /// 640x480, fx = fy = 500, principal point at the image centre (319.5, 239.5).
+    fn default() -> Self {
+        Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 500.0,
+            cx: 319.5,
+            cy: 239.5,
+        }
+    }
+}
+
+impl Intrinsics {
+    /// Projects a point given in the OpenCV camera frame (x right, y down,
+    /// z forward) to pixel coordinates; `None` for points not in front of the
+    /// camera. The result may lie outside the image.
+    pub fn project(&self, p_cam: DVec3) -> Option<DVec2> {
+        if p_cam.z > 1e-12 && p_cam.is_finite() {
+            Some(DVec2::new(
+                self.fx * p_cam.x / p_cam.z + self.cx,
+                self.fy * p_cam.y / p_cam.z + self.cy,
+            ))
+        } else {
+            None
+        }
+    }
+
+    /// The viewing ray through a pixel, in the camera frame, scaled so that
+    /// its z component is 1 (multiply by a depth to get the 3-D point).
+    pub fn ray(&self, pixel: DVec2) -> DVec3 {
+        DVec3::new(
+            (pixel.x - self.cx) / self.fx,
+            (pixel.y - self.cy) / self.fy,
+            1.0,
+        )
+    }
+
+    /// Checks that the intrinsics describe a usable camera: a non-empty image
+    /// of at most 16384 pixels a side, positive finite focal lengths and a
+    /// finite principal point.
+    pub fn validate(&self) -> Result<(), CaptureError> {
+        let bad = |reason: String| Err(CaptureError::InvalidIntrinsics { reason });
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            return bad(format!(
+                "image size {}x{} must be between 1x1 and 16384x16384",
+                self.width, self.height
+            ));
+        }
+        if !(self.fx.is_finite() && self.fx > 0.0 && self.fy.is_finite() && self.fy > 0.0) {
+            return bad(format!(
+                "focal lengths fx = {}, fy = {} must be finite and > 0",
+                self.fx, self.fy
+            ));
+        }
+        if !(self.cx.is_finite() && self.cy.is_finite()) {
+            return bad(format!(
+                "principal point ({}, {}) must be finite",
+                self.cx, self.cy
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A camera position on the view sphere around the object centre: elevation
+/// `theta_deg` in [0, 90] (90 = straight down), azimuth `phi_deg` in [0, 360)
+/// and `distance` from the object centre in object bounding radii. The camera
+/// looks at the object centre with no roll (see [`ViewPose::world_from_camera`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ViewPose {
+    /// Elevation above the table plane in degrees, [0, 90].
+    pub theta_deg: f64,
+    /// Azimuth about the world z axis in degrees, [0, 360), 0 = from +x.
+    pub phi_deg: f64,
+    /// Distance from the object centre in object bounding radii.
+    pub distance: f64,
+}
+
+/// Checks that a camera distance is finite and positive.
+pub fn check_distance(distance: f64) -> Result<(), CaptureError> {
+    if distance.is_finite() && distance > 0.0 {
+        Ok(())
+    } else {
+        Err(CaptureError::InvalidDistance { value: distance })
+    }
+}
+
+/// Wraps an angle in degrees into [0, 360).
+pub(crate) fn wrap_deg(phi: f64) -> f64 {
+    let w = phi.rem_euclid(360.0);
+    // rem_euclid can round up to exactly 360 for tiny negative inputs.
+    if w >= 360.0 { 0.0 } else { w }
+}
+
+impl ViewPose {
+    /// Validates and builds a view. `phi_deg` may be any finite angle and is
+    /// wrapped into [0, 360); `theta_deg` must lie in [0, 90] and `distance`
+    /// must be finite and positive.
+    pub fn new(theta_deg: f64, phi_deg: f64, distance: f64) -> Result<Self, CaptureError> {
+        if !(0.0..=90.0).contains(&theta_deg) {
+            return Err(CaptureError::InvalidTheta { value: theta_deg });
+        }
+        if !phi_deg.is_finite() {
+            return Err(CaptureError::InvalidPhi { value: phi_deg });
+        }
+        check_distance(distance)?;
+        Ok(ViewPose {
+            theta_deg,
+            phi_deg: wrap_deg(phi_deg),
+            distance,
+        })
+    }
+
+    /// The camera centre in the world frame:
+    /// `r (cos θ cos φ, cos θ sin φ, sin θ)`.
+    pub fn camera_position(&self) -> DVec3 {
+        let (st, ct) = self.theta_deg.to_radians().sin_cos();
+        let (sp, cp) = self.phi_deg.to_radians().sin_cos();
+        self.distance * DVec3::new(ct * cp, ct * sp, st)
+    }
+
+    /// The rotation whose columns are the camera axes (right, down, forward)
+    /// in world coordinates. Image "up" is `e_θ`, the direction of increasing
+    /// elevation, which stays defined at θ = 90: a top view is then rotated
+    /// by φ about the principal point.
+    pub fn world_from_camera_rotation(&self) -> DMat3 {
+        let (st, ct) = self.theta_deg.to_radians().sin_cos();
+        let (sp, cp) = self.phi_deg.to_radians().sin_cos();
+        let forward = -DVec3::new(ct * cp, ct * sp, st);
+        let up = DVec3::new(-st * cp, -st * sp, ct);
+        let down = -up;
+        let right = down.cross(forward);
+        DMat3::from_cols(right, down, forward)
+    }
+
+    /// The camera pose: maps points from the OpenCV camera frame (x right,
+    /// y down, z forward) to the world frame (z up, object centre at the
+    /// origin). Rotation columns are (right, down, forward); the translation
+    /// is the camera centre.
+    pub fn world_from_camera(&self) -> DAffine3 {
+        DAffine3::from_mat3_translation(self.world_from_camera_rotation(), self.camera_position())
+    }
+
+    /// The inverse of [`ViewPose::world_from_camera`].
+    pub fn camera_from_world(&self) -> DAffine3 {
+        let r = self.world_from_camera_rotation().transpose();
+        DAffine3::from_mat3_translation(r, -(r * self.camera_position()))
+    }
+}

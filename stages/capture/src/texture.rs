@@ -1,0 +1,131 @@
+//! RGB textures with a mip chain and bilinear sampling.
+
+/// One mip level: `w` x `h` RGB texels, row-major, row 0 at v = 0.
+#[derive(Debug, Clone)]
+pub(crate) struct Level {
+    pub w: u32,
+    pub h: u32,
+    pub data: Vec<[u8; 3]>,
+}
+
+impl Level {
+    /// Bilinear sample at texture coordinates (u, v) in [0, 1] (v = 0 at row 0),
+    /// wrapping (`repeat`) or clamping at the border. Returns 0..255 floats.
+    #[inline(always)]
+    pub fn sample(&self, u: f32, v: f32, repeat: bool) -> [f32; 3] {
+        let w = self.w as i32;
+        let h = self.h as i32;
+        let (x, y) = if repeat {
+            (
+                (u - u.floor()) * w as f32 - 0.5,
+                (v - v.floor()) * h as f32 - 0.5,
+            )
+        } else {
+            (
+                u.clamp(0.0, 1.0) * w as f32 - 0.5,
+                v.clamp(0.0, 1.0) * h as f32 - 0.5,
+            )
+        };
+        let xf = x.floor();
+        let yf = y.floor();
+        let fx = x - xf;
+        let fy = y - yf;
+        let (x0, x1) = texel_pair(xf as i32, w, repeat);
+        let (y0, y1) = texel_pair(yf as i32, h, repeat);
+        let row0 = y0 * self.w as usize;
+        let row1 = y1 * self.w as usize;
+        let a = self.data[row0 + x0];
+        let b = self.data[row0 + x1];
+        let c = self.data[row1 + x0];
+        let d = self.data[row1 + x1];
+        let mut out = [0.0f32; 3];
+        for k in 0..3 {
+            let top = a[k] as f32 + (b[k] as f32 - a[k] as f32) * fx;
+            let bottom = c[k] as f32 + (d[k] as f32 - c[k] as f32) * fx;
+            out[k] = top + (bottom - top) * fy;
+        }
+        out
+    }
+}
+
+/// The two texel indices a bilinear sample at integer position `i` blends.
+#[inline(always)]
+fn texel_pair(i: i32, n: i32, repeat: bool) -> (usize, usize) {
+    if repeat {
+        let a = if i < 0 { n - 1 } else { i.min(n - 1) };
+        let b = if i + 1 >= n { 0 } else { (i + 1).max(0) };
+        (a as usize, b as usize)
+    } else {
+        (
+            (i.clamp(0, n - 1)) as usize,
+            ((i + 1).clamp(0, n - 1)) as usize,
+        )
+    }
+}
+
+/// A texture with its mip chain (level 0 = full resolution).
+#[derive(Debug, Clone)]
+pub(crate) struct Texture {
+    levels: Vec<Level>,
+    /// Whether texture coordinates wrap around (else they clamp).
+    pub repeat: bool,
+}
+
+impl Texture {
+    /// Builds a texture and its mip chain (2x2 box filter down to 1x1).
+    pub fn new(w: u32, h: u32, data: Vec<[u8; 3]>, repeat: bool) -> Self {
+        assert_eq!(data.len(), (w * h) as usize, "texture size mismatch");
+        let mut levels = vec![Level { w, h, data }];
+        while {
+            let last = levels.last().expect("level 0 exists");
+            last.w > 1 || last.h > 1
+        } {
+            let src = levels.last().expect("level exists");
+            let nw = (src.w / 2).max(1);
+            let nh = (src.h / 2).max(1);
+            let mut data = Vec::with_capacity((nw * nh) as usize);
+            for y in 0..nh {
+                for x in 0..nw {
+                    let xs = [(2 * x).min(src.w - 1), (2 * x + 1).min(src.w - 1)];
+                    let ys = [(2 * y).min(src.h - 1), (2 * y + 1).min(src.h - 1)];
+                    let mut acc = [0u32; 3];
+                    for &yy in &ys {
+                        for &xx in &xs {
+                            let t = src.data[(yy * src.w + xx) as usize];
+                            for k in 0..3 {
+                                acc[k] += t[k] as u32;
+                            }
+                        }
+                    }
+                    data.push(acc.map(|a| ((a + 2) / 4) as u8));
+                }
+            }
+            levels.push(Level { w: nw, h: nh, data });
+        }
+        Texture { levels, repeat }
+    }
+
+    /// A single-colour texture.
+    pub fn solid(c: [u8; 3]) -> Self {
+        Texture::new(1, 1, vec![c], false)
+    }
+
+    /// Full-resolution width and height.
+    pub fn size(&self) -> (u32, u32) {
+        (self.levels[0].w, self.levels[0].h)
+    }
+
+    /// The mip level for a level-of-detail (log2 of texels per pixel),
+    /// clamped to the chain.
+    #[inline]
+    pub fn level_for_lod(&self, lod: f32) -> &Level {
+        let i = if lod > 0.0 { lod as usize } else { 0 };
+        &self.levels[i.min(self.levels.len() - 1)]
+    }
+
+    /// The level with index `i`, clamped to the chain.
+    #[inline]
+    pub fn level(&self, i: usize) -> &Level {
+        &self.levels[i.min(self.levels.len() - 1)]
+    }
+}

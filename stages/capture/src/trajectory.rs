@@ -1,0 +1,142 @@
+//! A smooth camera trajectory over the hemisphere, as an eye-in-hand arm
+//! would move it, with the camera motion between frames.
+
+use std::f64::consts::TAU;
+
+use glam::DAffine3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::camera::{check_distance, wrap_deg};
+use crate::{CaptureError, ViewPose};
+
+/// A seeded, infinitely long, smooth camera path: elevation oscillates inside
+/// [45.5, 89.5] deg as a sum of two slow sinusoids; azimuth drifts at a steady
+/// rate plus a slow sinusoidal sway and wraps through 360. Speeds stay below
+/// about 10 deg/s in θ and 30 deg/s in φ, so consecutive frames at 30 fps are
+/// close. The distance is constant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    fps: f64,
+    distance: f64,
+    theta_freq: [f64; 2],
+    theta_phase: [f64; 2],
+    phi0: f64,
+    phi_rate: f64,
+    sway_freq: f64,
+    sway_phase: f64,
+}
+
+/// One frame of a [`Trajectory`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrajectoryFrame {
+    /// Frame number, from 0.
+    pub index: u64,
+    /// Time of the frame in seconds (`index / fps`).
+    pub time_s: f64,
+    /// Camera view at this frame.
+    pub view: ViewPose,
+    /// The camera motion since the previous frame:
+    /// `previous_camera_from_current_camera`, i.e. the current camera pose
+    /// expressed in the previous camera's frame (identity for frame 0).
+    pub camera_motion: DAffine3,
+}
+
+const THETA_MID: f64 = 67.5;
+const THETA_AMP: [f64; 2] = [17.5, 4.5];
+const PHI_SWAY: f64 = 25.0;
+
+impl Trajectory {
+    /// A trajectory drawn from `seed`, sampled at `fps` frames per second, at
+    /// camera distance `distance` (bounding radii).
+    pub fn new(seed: u64, fps: f64, distance: f64) -> Result<Self, CaptureError> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(CaptureError::InvalidTrajectory {
+                reason: format!("frame rate {fps} must be finite and > 0"),
+            });
+        }
+        check_distance(distance)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7472_616a);
+        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        Ok(Trajectory {
+            fps,
+            distance,
+            theta_freq: [rng.random_range(0.02..0.05), rng.random_range(0.08..0.15)],
+            theta_phase: [rng.random_range(0.0..TAU), rng.random_range(0.0..TAU)],
+            phi0: rng.random_range(0.0..360.0),
+            phi_rate: sign * rng.random_range(6.0..15.0),
+            sway_freq: rng.random_range(0.03..0.07),
+            sway_phase: rng.random_range(0.0..TAU),
+        })
+    }
+
+    /// Frames per second.
+    pub fn fps(&self) -> f64 {
+        self.fps
+    }
+
+    /// The camera view at time `t` seconds.
+    pub fn view_at(&self, t: f64) -> ViewPose {
+        let theta = THETA_MID
+            + THETA_AMP[0] * (TAU * self.theta_freq[0] * t + self.theta_phase[0]).sin()
+            + THETA_AMP[1] * (TAU * self.theta_freq[1] * t + self.theta_phase[1]).sin();
+        let phi = self.phi0
+            + self.phi_rate * t
+            + PHI_SWAY * (TAU * self.sway_freq * t + self.sway_phase).sin();
+        ViewPose {
+            theta_deg: theta.clamp(0.0, 90.0),
+            phi_deg: wrap_deg(phi),
+            distance: self.distance,
+        }
+    }
+
+    /// Frame number `index`.
+    pub fn frame(&self, index: u64) -> TrajectoryFrame {
+        let time_s = index as f64 / self.fps;
+        let view = self.view_at(time_s);
+        let camera_motion = if index == 0 {
+            DAffine3::IDENTITY
+        } else {
+            let prev = self.view_at((index - 1) as f64 / self.fps);
+            prev.camera_from_world() * view.world_from_camera()
+        };
+        TrajectoryFrame {
+            index,
+            time_s,
+            view,
+            camera_motion,
+        }
+    }
+
+    /// An endless iterator over the frames from frame 0.
+    pub fn frames(&self) -> Frames<'_> {
+        Frames {
+            trajectory: self,
+            next: 0,
+        }
+    }
+}
+
+/// Iterator over the frames of a [`Trajectory`] (endless; use `take`).
+#[derive(Debug, Clone)]
+pub struct Frames<'a> {
+    trajectory: &'a Trajectory,
+    next: u64,
+}
+
+impl Iterator for Frames<'_> {
+    type Item = TrajectoryFrame;
+    fn next(&mut self) -> Option<TrajectoryFrame> {
+        let f = self.trajectory.frame(self.next);
+        self.next += 1;
+        Some(f)
+    }
+}
+
+impl<'a> IntoIterator for &'a Trajectory {
+    type Item = TrajectoryFrame;
+    type IntoIter = Frames<'a>;
+    fn into_iter(self) -> Frames<'a> {
+        self.frames()
+    }
+}

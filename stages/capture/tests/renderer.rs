@@ -1,0 +1,585 @@
+//! Geometry, rendering, determinism and clutter of the scene renderer.
+
+use std::sync::Arc;
+
+use acch_capture::{
+    Background, CaptureError, DEFAULT_DISTANCE, Effects, Intrinsics, Object, Renderer, SceneConfig,
+    ViewPose, mask_bbox,
+};
+use glam::{DVec2, DVec3};
+use image::GrayImage;
+
+fn renderer(object: &str, background: Background, effects: Effects, seed: u64) -> Renderer {
+    let object = Arc::new(Object::builtin(object).expect("builtin object"));
+    let mut config = SceneConfig::new(object, background);
+    config.effects = effects;
+    Renderer::new(config, seed)
+}
+
+fn view(theta: f64, phi: f64) -> ViewPose {
+    ViewPose::new(theta, phi, DEFAULT_DISTANCE).expect("valid view")
+}
+
+fn mask_centroid(mask: &GrayImage) -> DVec2 {
+    let (mut sum, mut n) = (DVec2::ZERO, 0.0);
+    for (x, y, p) in mask.enumerate_pixels() {
+        if p[0] != 0 {
+            sum += DVec2::new(x as f64, y as f64);
+            n += 1.0;
+        }
+    }
+    assert!(n > 0.0, "empty mask");
+    sum / n
+}
+
+fn count(mask: &GrayImage) -> usize {
+    mask.pixels().filter(|p| p[0] != 0).count()
+}
+
+#[test]
+fn world_origin_projects_to_principal_point() {
+    let k = Intrinsics::default();
+    for theta in [0.0, 30.0, 45.0, 72.5, 89.999, 90.0] {
+        for phi in [0.0, 77.0, 180.0, 350.0] {
+            let v = view(theta, phi);
+            let p_cam = v
+                .world_from_camera()
+                .inverse()
+                .transform_point3(DVec3::ZERO);
+            let px = k.project(p_cam).expect("origin in front of the camera");
+            assert!(
+                (px - DVec2::new(k.cx, k.cy)).length() < 1e-9,
+                "theta {theta} phi {phi}: {px}"
+            );
+            assert!((p_cam.z - DEFAULT_DISTANCE).abs() < 1e-9);
+            // The inverse helper agrees with inverting the pose.
+            let q = v
+                .camera_from_world()
+                .transform_point3(DVec3::new(0.3, -0.2, 0.1));
+            let q2 = v
+                .world_from_camera()
+                .inverse()
+                .transform_point3(DVec3::new(0.3, -0.2, 0.1));
+            assert!((q - q2).length() < 1e-12);
+        }
+    }
+}
+
+#[test]
+fn known_point_projects_where_the_intrinsics_say() {
+    let k = Intrinsics::default();
+    let v = view(60.0, 40.0);
+    let pose = v.world_from_camera();
+    // 0.5 right, 0.25 down and 2 forward of the camera, in world coordinates.
+    let p_world = pose.transform_point3(DVec3::new(0.5, 0.25, 2.0));
+    let p_cam = v.camera_from_world().transform_point3(p_world);
+    let px = k.project(p_cam).unwrap();
+    assert!(
+        (px - DVec2::new(319.5 + 125.0, 239.5 + 62.5)).length() < 1e-9,
+        "{px}"
+    );
+    assert_eq!(k.project(DVec3::new(0.0, 0.0, -1.0)), None);
+    // Camera centre and axes as specified.
+    let c = pose.translation;
+    assert!(
+        (c - 5.0
+            * DVec3::new(
+                0.5 * 40f64.to_radians().cos(),
+                0.5 * 40f64.to_radians().sin(),
+                0.75f64.sqrt()
+            ))
+        .length()
+            < 1e-9
+    );
+    let r = pose.matrix3;
+    assert!((r.transpose() * r - glam::DMat3::IDENTITY).abs_diff_eq(glam::DMat3::ZERO, 1e-12));
+    assert!((r.determinant() - 1.0).abs() < 1e-12);
+    assert!(
+        (r.z_axis + c.normalize()).length() < 1e-12,
+        "forward looks at the origin"
+    );
+    // Upright: image "down" points down in the world, "right" is horizontal.
+    assert!(r.y_axis.z < 0.0 && r.x_axis.z.abs() < 1e-12);
+}
+
+#[test]
+fn top_view_has_continuous_defined_roll() {
+    let a = view(90.0, 30.0).world_from_camera().matrix3;
+    let b = ViewPose::new(89.9999, 30.0, DEFAULT_DISTANCE)
+        .unwrap()
+        .world_from_camera()
+        .matrix3;
+    assert!(a.abs_diff_eq(b, 1e-5));
+    // Image up at the top view is e_theta = (-cos phi, -sin phi, 0).
+    let up = -a.y_axis;
+    assert!(
+        (up - DVec3::new(-30f64.to_radians().cos(), -30f64.to_radians().sin(), 0.0)).length()
+            < 1e-12
+    );
+}
+
+#[test]
+fn fruitbox_top_view_mask_is_centred_on_the_projected_centre() {
+    let r = renderer("fruitbox", Background::default(), Effects::default(), 0);
+    let k = Intrinsics::default();
+    for phi in [0.0, 20.0, 45.0, 130.0] {
+        let out = r.render(&view(90.0, phi), 0);
+        let c = mask_centroid(&out.mask);
+        assert!(
+            (c - DVec2::new(k.cx, k.cy)).length() < 1.0,
+            "phi {phi}: centroid {c}"
+        );
+    }
+}
+
+/// For a pixel of the output of a 90 degree turn about the principal point,
+/// the source pixel, if inside the image. The clockwise turn (on screen)
+/// takes image right (+u) to image down (+v): out(cx - dy, cy + dx) =
+/// in(cx + dx, cy + dy).
+fn rotated_source(x: u32, y: u32, clockwise: bool) -> Option<(u32, u32)> {
+    let k = Intrinsics::default();
+    let (dx, dy) = (x as f64 - k.cx, y as f64 - k.cy);
+    let (sx, sy) = if clockwise {
+        (k.cx + dy, k.cy - dx)
+    } else {
+        (k.cx - dy, k.cy + dx)
+    };
+    (sx >= 0.0 && sy >= 0.0 && sx < k.width as f64 && sy < k.height as f64)
+        .then_some((sx as u32, sy as u32))
+}
+
+fn rotated_iou(a: &GrayImage, b: &GrayImage, clockwise: bool) -> f64 {
+    let (mut inter, mut union) = (0usize, 0usize);
+    for (x, y, p) in b.enumerate_pixels() {
+        let src =
+            rotated_source(x, y, clockwise).is_some_and(|(sx, sy)| a.get_pixel(sx, sy)[0] != 0);
+        let dst = p[0] != 0;
+        inter += (src && dst) as usize;
+        union += (src || dst) as usize;
+    }
+    inter as f64 / union as f64
+}
+
+#[test]
+fn top_view_phi_plus_90_rotates_the_mask_by_90_degrees() {
+    let r = renderer("fruitbox", Background::A, Effects::default(), 0);
+    let a = r.render(&view(90.0, 20.0), 0);
+    let b = r.render(&view(90.0, 110.0), 0);
+    assert!(count(&a.mask) > 2000, "object visible");
+    let iou = rotated_iou(&a.mask, &b.mask, true);
+    assert!(iou > 0.95, "IoU {iou}");
+    // The box top is centrally symmetric, so check the direction on its
+    // printed (and evenly lit) texture: the clockwise turn matches, the
+    // counter-clockwise one does not.
+    let diff = |clockwise: bool| {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (x, y, m) in b.mask.enumerate_pixels() {
+            if let Some((sx, sy)) = rotated_source(x, y, clockwise) {
+                if m[0] != 0 && a.mask.get_pixel(sx, sy)[0] != 0 {
+                    let (p, q) = (b.image.get_pixel(x, y).0, a.image.get_pixel(sx, sy).0);
+                    sum += (0..3)
+                        .map(|i| (p[i] as f64 - q[i] as f64).abs())
+                        .sum::<f64>();
+                    n += 3.0;
+                }
+            }
+        }
+        sum / n
+    };
+    let (right, wrong) = (diff(true), diff(false));
+    assert!(
+        right < 8.0 && wrong > 4.0 * right,
+        "mean abs diff: clockwise {right}, counter-clockwise {wrong}"
+    );
+}
+
+#[test]
+fn top_view_rotation_of_an_asymmetric_mask() {
+    let duck = Arc::new(Object::load_obj("/work/shared/data/duck/duck.obj").unwrap());
+    let r = Renderer::new(SceneConfig::new(duck, Background::default()), 0);
+    let a = r.render(&view(90.0, 200.0), 0).mask;
+    let b = r.render(&view(90.0, 290.0), 0).mask;
+    let (right, wrong) = (rotated_iou(&a, &b, true), rotated_iou(&a, &b, false));
+    assert!(
+        right > 0.95 && wrong < 0.85,
+        "IoU clockwise {right}, counter-clockwise {wrong}"
+    );
+}
+
+#[test]
+fn mask_and_bbox_match_the_object_pixels() {
+    let r = renderer(
+        "fruitbox",
+        Background::Plain([140, 140, 140]),
+        Effects::default(),
+        0,
+    );
+    let out = r.render(&view(50.0, 10.0), 0);
+    let b = out.truth.bbox.expect("visible");
+    assert_eq!(Some(b), mask_bbox(&out.mask));
+    // Outside the mask the plain colour is untouched; inside it mostly differs.
+    let (mut inside_diff, mut inside) = (0, 0);
+    for (x, y, m) in out.mask.enumerate_pixels() {
+        let p = out.image.get_pixel(x, y).0;
+        if m[0] == 0 {
+            assert_eq!(p, [140, 140, 140], "background pixel ({x}, {y})");
+        } else {
+            inside += 1;
+            inside_diff += (p != [140, 140, 140]) as usize;
+            assert!(x >= b.x && x < b.x + b.width && y >= b.y && y < b.y + b.height);
+        }
+    }
+    assert!(inside_diff as f64 > 0.99 * inside as f64);
+    assert_eq!(out.truth.theta_deg, 50.0);
+    assert_eq!(
+        out.truth.world_from_camera,
+        view(50.0, 10.0).world_from_camera()
+    );
+}
+
+#[test]
+fn same_seed_same_bytes_and_noise_depends_on_the_frame_seed() {
+    let fx = Effects {
+        noise_sigma: 6.0,
+        blur_sigma: 0.8,
+        brightness: 0.9,
+    };
+    let a = renderer("can", Background::Clutter, fx, 7).render(&view(55.0, 123.0), 42);
+    let b = renderer("can", Background::Clutter, fx, 7).render(&view(55.0, 123.0), 42);
+    assert_eq!(a.image.as_raw(), b.image.as_raw());
+    assert_eq!(a.mask.as_raw(), b.mask.as_raw());
+    let c = renderer("can", Background::Clutter, fx, 7).render(&view(55.0, 123.0), 43);
+    assert_ne!(a.image.as_raw(), c.image.as_raw());
+    assert_eq!(
+        a.mask.as_raw(),
+        c.mask.as_raw(),
+        "noise never touches the mask"
+    );
+    // The clutter layout follows the scene seed.
+    let d = renderer("can", Background::Clutter, fx, 8).render(&view(55.0, 123.0), 42);
+    assert_ne!(a.image.as_raw(), d.image.as_raw());
+}
+
+#[test]
+fn parallel_rendering_matches_sequential() {
+    use rayon::prelude::*;
+    let r = renderer(
+        "fruitbox",
+        Background::B,
+        Effects {
+            noise_sigma: 3.0,
+            ..Effects::default()
+        },
+        1,
+    );
+    let views: Vec<ViewPose> = (0..8)
+        .map(|i| view(45.0 + 5.0 * i as f64, 40.0 * i as f64))
+        .collect();
+    let seq: Vec<Vec<u8>> = views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| r.render(v, i as u64).image.into_raw())
+        .collect();
+    let par: Vec<Vec<u8>> = views
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| r.render(v, i as u64).image.into_raw())
+        .collect();
+    assert_eq!(seq, par);
+}
+
+#[test]
+fn render_into_reuses_buffers() {
+    let r = renderer("fruitbox", Background::A, Effects::default(), 0);
+    let mut out = r.render(&view(60.0, 0.0), 0);
+    let (pi, pm) = (out.image.as_ptr(), out.mask.as_ptr());
+    for phi in [10.0, 20.0, 30.0] {
+        r.render_into(&view(60.0, phi), 0, &mut out);
+        assert_eq!(out.image.as_ptr(), pi);
+        assert_eq!(out.mask.as_ptr(), pm);
+        assert_eq!(out.truth.phi_deg, phi);
+    }
+    // Re-rendering an earlier view into a used buffer gives the same bytes.
+    let fresh = r.render(&view(60.0, 20.0), 0);
+    r.render_into(&view(60.0, 20.0), 0, &mut out);
+    assert_eq!(fresh.image.as_raw(), out.image.as_raw());
+}
+
+#[test]
+fn effects_do_what_they_say() {
+    let v = view(60.0, 30.0);
+    let base = renderer("fruitbox", Background::C, Effects::default(), 0).render(&v, 0);
+    let mean = |img: &image::RgbImage| {
+        img.as_raw().iter().map(|&b| b as f64).sum::<f64>() / img.as_raw().len() as f64
+    };
+    let dark = renderer(
+        "fruitbox",
+        Background::C,
+        Effects {
+            brightness: 0.5,
+            ..Effects::default()
+        },
+        0,
+    )
+    .render(&v, 0);
+    assert!((mean(&dark.image) - 0.5 * mean(&base.image)).abs() < 1.0);
+    let noisy = renderer(
+        "fruitbox",
+        Background::C,
+        Effects {
+            noise_sigma: 8.0,
+            ..Effects::default()
+        },
+        0,
+    )
+    .render(&v, 5);
+    let diffs: Vec<f64> = noisy
+        .image
+        .as_raw()
+        .iter()
+        .zip(base.image.as_raw())
+        .map(|(&a, &b)| a as f64 - b as f64)
+        .collect();
+    let m = diffs.iter().sum::<f64>() / diffs.len() as f64;
+    let sd = (diffs.iter().map(|d| (d - m).powi(2)).sum::<f64>() / diffs.len() as f64).sqrt();
+    assert!(
+        m.abs() < 0.3 && (sd - 8.0).abs() < 0.5,
+        "noise mean {m} sd {sd}"
+    );
+    // Blur lowers the pixel-to-pixel differences.
+    let blurred = renderer(
+        "fruitbox",
+        Background::C,
+        Effects {
+            blur_sigma: 2.0,
+            ..Effects::default()
+        },
+        0,
+    )
+    .render(&v, 0);
+    let grad = |img: &image::RgbImage| {
+        img.as_raw()
+            .windows(4)
+            .map(|w| (w[3] as f64 - w[0] as f64).abs())
+            .sum::<f64>()
+    };
+    assert!(grad(&blurred.image) < 0.6 * grad(&base.image));
+    assert_eq!(blurred.mask.as_raw(), base.mask.as_raw());
+}
+
+#[test]
+fn textured_backgrounds_have_their_colours() {
+    let mean_bg = |bg: Background| {
+        let out = renderer("tricolor", bg, Effects::default(), 0).render(&view(70.0, 0.0), 0);
+        let (mut s, mut n) = ([0.0f64; 3], 0.0);
+        for (x, y, m) in out.mask.enumerate_pixels() {
+            if m[0] == 0 {
+                let p = out.image.get_pixel(x, y).0;
+                for c in 0..3 {
+                    s[c] += p[c] as f64;
+                }
+                n += 1.0;
+            }
+        }
+        s.map(|v| v / n)
+    };
+    let a = mean_bg(Background::A);
+    assert!(
+        a[0] > a[2] + 60.0 && a[1] > a[2] + 30.0,
+        "A is yellowish wood: {a:?}"
+    );
+    let b = mean_bg(Background::B);
+    assert!(b[2] > b[0] + 60.0 && b[2] > b[1] + 40.0, "B is blue: {b:?}");
+    let c = mean_bg(Background::C);
+    assert!(
+        c[1] > c[0] + 40.0 && c[1] > c[2] + 40.0,
+        "C is green: {c:?}"
+    );
+    let p = mean_bg(Background::Plain([10, 200, 30]));
+    assert_eq!(p, [10.0, 200.0, 30.0]);
+}
+
+#[test]
+fn clutter_has_distractors_that_never_hide_the_target_centre() {
+    let k = Intrinsics::default();
+    for seed in 0..6 {
+        for bg in [Background::Clutter, Background::ClutterSimilar] {
+            let r = renderer("fruitbox", bg, Effects::default(), seed);
+            assert!(
+                (3..=6).contains(&r.distractor_count()),
+                "{} distractors",
+                r.distractor_count()
+            );
+            let plain = renderer("fruitbox", Background::default(), Effects::default(), seed);
+            let views = acch_capture::ViewSpec::Random { n: 6 }.views(DEFAULT_DISTANCE, seed);
+            for (i, v) in views.iter().enumerate() {
+                let out = r.render(v, i as u64);
+                let centre = out.mask.get_pixel(k.cx.round() as u32, k.cy.round() as u32)[0];
+                assert_eq!(centre, 255, "seed {seed} {bg} view {v:?}: centre hidden");
+                // Distractors can only remove target pixels, never add any.
+                let alone = plain.render(v, i as u64).mask;
+                assert!(
+                    out.mask
+                        .pixels()
+                        .zip(alone.pixels())
+                        .all(|(a, b)| a[0] <= b[0])
+                );
+            }
+        }
+    }
+    // Distractors are visible: clutter changes background pixels.
+    let v = view(60.0, 0.0);
+    let clutter = renderer("can", Background::Clutter, Effects::default(), 3).render(&v, 0);
+    let similar = renderer("can", Background::ClutterSimilar, Effects::default(), 3).render(&v, 0);
+    assert_ne!(clutter.image.as_raw(), similar.image.as_raw());
+}
+
+#[test]
+fn clutter_similar_distractors_use_the_target_colours() {
+    // The tricolor object is pure red, green and blue: the similar
+    // distractors' saturated pixels must have those chromaticities.
+    let chroma = |p: [u8; 3]| {
+        let s = p.iter().map(|&c| c as f64).sum::<f64>().max(1.0);
+        [p[0] as f64 / s, p[1] as f64 / s, p[2] as f64 / s]
+    };
+    let targets = [[210, 30, 30], [30, 170, 50], [30, 60, 200]].map(chroma);
+    for seed in [11, 12] {
+        let out = renderer(
+            "tricolor",
+            Background::ClutterSimilar,
+            Effects::default(),
+            seed,
+        )
+        .render(&view(90.0, 0.0), 0);
+        let (mut saturated, mut similar) = (0, 0);
+        for (x, y, p) in out.image.enumerate_pixels() {
+            let (mx, mn) = (
+                *p.0.iter().max().unwrap() as i32,
+                *p.0.iter().min().unwrap() as i32,
+            );
+            if out.mask.get_pixel(x, y)[0] == 0 && mx - mn > 80 {
+                saturated += 1;
+                let c = chroma(p.0);
+                let near = targets
+                    .iter()
+                    .any(|t| (0..3).map(|i| (t[i] - c[i]).powi(2)).sum::<f64>().sqrt() < 0.12);
+                similar += near as usize;
+            }
+        }
+        assert!(
+            saturated > 1000,
+            "seed {seed}: distractors visible ({saturated} saturated pixels)"
+        );
+        assert!(
+            similar as f64 > 0.9 * saturated as f64,
+            "seed {seed}: {similar} of {saturated} similar"
+        );
+    }
+}
+
+#[test]
+fn view_pose_validation() {
+    assert!(
+        matches!(ViewPose::new(95.0, 0.0, 5.0), Err(CaptureError::InvalidTheta { value }) if value == 95.0)
+    );
+    assert!(matches!(
+        ViewPose::new(-1.0, 0.0, 5.0),
+        Err(CaptureError::InvalidTheta { .. })
+    ));
+    assert!(matches!(
+        ViewPose::new(f64::NAN, 0.0, 5.0),
+        Err(CaptureError::InvalidTheta { .. })
+    ));
+    assert!(matches!(
+        ViewPose::new(45.0, f64::INFINITY, 5.0),
+        Err(CaptureError::InvalidPhi { .. })
+    ));
+    assert!(matches!(
+        ViewPose::new(45.0, 0.0, -2.0),
+        Err(CaptureError::InvalidDistance { .. })
+    ));
+    assert!(matches!(
+        ViewPose::new(45.0, 0.0, f64::NAN),
+        Err(CaptureError::InvalidDistance { .. })
+    ));
+    let msg = ViewPose::new(95.0, 0.0, 5.0).unwrap_err().to_string();
+    assert!(msg.contains("95") && msg.contains("[0, 90]"), "{msg}");
+    assert_eq!(ViewPose::new(45.0, -10.0, 5.0).unwrap().phi_deg, 350.0);
+    assert_eq!(ViewPose::new(45.0, 720.0, 5.0).unwrap().phi_deg, 0.0);
+    // A hand-built invalid pose renders without panicking.
+    let r = renderer("can", Background::A, Effects::default(), 0);
+    for bad in [
+        ViewPose {
+            theta_deg: 120.0,
+            phi_deg: -30.0,
+            distance: 5.0,
+        },
+        ViewPose {
+            theta_deg: 45.0,
+            phi_deg: 0.0,
+            distance: 0.0,
+        },
+        ViewPose {
+            theta_deg: f64::NAN,
+            phi_deg: 0.0,
+            distance: 5.0,
+        },
+        ViewPose {
+            theta_deg: 45.0,
+            phi_deg: 0.0,
+            distance: 0.5,
+        },
+    ] {
+        let _ = r.render(&bad, 0);
+    }
+}
+
+#[test]
+fn builtin_objects_are_normalised_and_unknown_names_are_errors() {
+    for name in acch_capture::BUILTIN_OBJECTS {
+        let o = Object::builtin(name).unwrap();
+        assert_eq!(o.name(), *name);
+        assert!(
+            (o.bounding_radius() - 1.0).abs() < 1e-5,
+            "{name}: {}",
+            o.bounding_radius()
+        );
+        assert!(
+            o.table_z() < -0.3 && o.table_z() > -1.0,
+            "{name}: {}",
+            o.table_z()
+        );
+    }
+    assert_eq!(Object::builtin("fruitbox").unwrap().texture_count(), 6);
+    let err = Object::builtin("banana").unwrap_err().to_string();
+    assert!(
+        err.contains("banana") && err.contains("fruitbox") && err.contains("tricolor"),
+        "{err}"
+    );
+}
+
+#[test]
+fn every_fruitbox_view_is_distinct_and_centred() {
+    // Views in the training grid differ from each other (no symmetric twins)
+    // and the object always sits around the image centre.
+    let r = renderer("fruitbox", Background::default(), Effects::default(), 0);
+    let views = acch_capture::ViewSpec::training_grid().views(DEFAULT_DISTANCE, 0);
+    let mut seen = std::collections::HashMap::new();
+    for (i, v) in views.iter().enumerate() {
+        let out = r.render(v, 0);
+        let b = out.truth.bbox.unwrap();
+        let (cx, cy) = (
+            b.x as f64 + b.width as f64 / 2.0,
+            b.y as f64 + b.height as f64 / 2.0,
+        );
+        assert!(
+            (cx - 319.5).abs() < 60.0 && (cy - 239.5).abs() < 60.0,
+            "view {i} bbox {b:?}"
+        );
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        std::hash::Hash::hash(out.image.as_raw(), &mut h);
+        if let Some(j) = seen.insert(std::hash::Hasher::finish(&h), i) {
+            panic!("views {j} and {i} are identical");
+        }
+    }
+}

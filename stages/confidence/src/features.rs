@@ -1,0 +1,458 @@
+//! What the network looks at: the four features of the paper (section 4)
+//! and, for the second variant, the whole response normalised by its
+//! maximum.
+//!
+//! # Definitions
+//!
+//! Let `m` be the response (one match value per view, ordered θ-slice by
+//! θ-slice), `g = max m` the global maximum and `i*` the first view that
+//! reaches it, in slice `s*`. Ties are resolved towards the nearer
+//! candidate (smaller separation), then towards the lower index.
+//!
+//! * **R_φ** — the best value `m[j]` over the views `j` of slice `s*` whose
+//!   azimuth differs from φ(i*) by *more* than the minimum separation
+//!   ([`FeatureParams::min_phi_separation_deg`], paper: 20°; wrapped, so
+//!   350° and 0° are 10° apart), divided by `g`. In [0, 1]: 1 = a second
+//!   peak as high as the first (ambiguous), 0 = nothing else matches.
+//! * **D_φ** — the wrapped azimuth separation in degrees, in
+//!   (min separation, 180], between `i*` and that view `j`.
+//! * **R_θ** — the best value in any slice other than `s*`, divided by `g`.
+//! * **D_θ** — the number of slices between `s*` and that slice
+//!   (`|k − s*|` for slice index `k`; 1 = the neighbouring elevation).
+//!
+//! The paper writes the ratios as "global maximum to second best", which is
+//! ≥ 1; here they are second / best so that they lie in [0, 1].
+//!
+//! Edge cases: when slice `s*` has no view beyond the minimum separation,
+//! R_φ = D_φ = 0; when there is only one slice, R_θ = D_θ = 0 (no evidence
+//! of ambiguity that could be measured). When `g = 0` (nothing matches at
+//! all) every ratio whose candidate exists is 1: a flat response is as
+//! ambiguous as a response can be.
+
+use crate::ConfidenceError;
+use acch_core::View;
+use acch_pose::{Slice, phi_error};
+
+/// Default minimum azimuth separation between the global maximum and the
+/// second best match in its slice, degrees (paper: 20°).
+pub const DEFAULT_MIN_PHI_SEPARATION_DEG: f32 = 20.0;
+
+/// Number of features in [`Features`].
+pub const FEATURE_COUNT: usize = 4;
+
+/// Parameters of the feature extraction; stored with a trained model so
+/// that rating uses the same definition as training did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeatureParams {
+    /// Views closer than this (or exactly this) in azimuth to the global
+    /// maximum are not candidates for the second best match in its slice,
+    /// degrees in [0, 180).
+    pub min_phi_separation_deg: f32,
+}
+
+impl Default for FeatureParams {
+    fn default() -> Self {
+        FeatureParams {
+            min_phi_separation_deg: DEFAULT_MIN_PHI_SEPARATION_DEG,
+        }
+    }
+}
+
+impl FeatureParams {
+    /// Checks that the separation is a finite angle in [0, 180).
+    pub fn validate(&self) -> Result<(), ConfidenceError> {
+        let s = self.min_phi_separation_deg;
+        if s.is_finite() && (0.0..180.0).contains(&s) {
+            Ok(())
+        } else {
+            Err(ConfidenceError::InvalidConfig(format!(
+                "the minimum azimuth separation must be in [0, 180) degrees, got {s}"
+            )))
+        }
+    }
+}
+
+/// The four features of a match-value response (see the module
+/// documentation for the exact definitions).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Features {
+    /// Second best match in the best θ slice, beyond the minimum azimuth
+    /// separation, relative to the global maximum; [0, 1].
+    pub r_phi: f32,
+    /// Wrapped azimuth separation between those two views, degrees.
+    pub d_phi: f32,
+    /// Best match in any other θ slice relative to the global maximum;
+    /// [0, 1].
+    pub r_theta: f32,
+    /// Number of slices between the best slice and that slice (1 =
+    /// neighbour), as a float for the network.
+    pub d_theta: f32,
+}
+
+impl Features {
+    /// Computes the features of `response` over `views` split into
+    /// `slices` (as [`acch_pose::slices`] returns them). Allocates nothing.
+    ///
+    /// Errors when the response is empty or holds a negative or
+    /// non-finite value, when `views` has another length, when the slices
+    /// do not cover the response contiguously in order, or when a view of
+    /// the best slice has a non-finite azimuth.
+    pub fn compute(
+        response: &[f32],
+        slices: &[Slice],
+        views: &[View],
+        params: &FeatureParams,
+    ) -> Result<Features, ConfidenceError> {
+        params.validate()?;
+        let (best, g) = scan_response(response)?;
+        if views.len() != response.len() {
+            return Err(ConfidenceError::LengthMismatch {
+                what: "views",
+                expected: response.len(),
+                found: views.len(),
+            });
+        }
+        check_slices(slices, response.len())?;
+        let s_star = slices
+            .iter()
+            .position(|s| (s.start..s.start + s.len).contains(&best))
+            .ok_or(ConfidenceError::BadSlices(
+                "no slice holds the global maximum",
+            ))?;
+        let ratio = |v: f32| {
+            if g > 0.0 {
+                (v / g).clamp(0.0, 1.0)
+            } else {
+                1.0
+            }
+        };
+
+        // φ: the second best view of slice s* beyond the separation.
+        let s = slices[s_star];
+        if let Some(index) = (s.start..s.start + s.len).find(|&j| !views[j].phi_deg.is_finite()) {
+            return Err(ConfidenceError::InvalidView { index });
+        }
+        let phi0 = views[best].phi_deg;
+        let mut second: Option<(f32, f32)> = None; // (value, separation)
+        for j in s.start..s.start + s.len {
+            if j == best {
+                continue;
+            }
+            let d = phi_error(views[j].phi_deg, phi0);
+            if d.is_nan() || d <= params.min_phi_separation_deg {
+                continue;
+            }
+            let v = response[j];
+            if second.is_none_or(|(bv, bd)| v > bv || (v == bv && d < bd)) {
+                second = Some((v, d));
+            }
+        }
+        let (r_phi, d_phi) = second.map_or((0.0, 0.0), |(v, d)| (ratio(v), d));
+
+        // θ: the best view of any other slice.
+        let mut other: Option<(f32, usize)> = None; // (value, slice distance)
+        for (k, sl) in slices.iter().enumerate() {
+            if k == s_star {
+                continue;
+            }
+            let v = response[sl.start..sl.start + sl.len]
+                .iter()
+                .fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+            let d = k.abs_diff(s_star);
+            if other.is_none_or(|(bv, bd)| v > bv || (v == bv && d < bd)) {
+                other = Some((v, d));
+            }
+        }
+        let (r_theta, d_theta) = other.map_or((0.0, 0.0), |(v, d)| (ratio(v), d as f32));
+
+        Ok(Features {
+            r_phi,
+            d_phi,
+            r_theta,
+            d_theta,
+        })
+    }
+
+    /// The features as the network's input vector:
+    /// `[r_phi, d_phi, r_theta, d_theta]`.
+    pub fn to_array(&self) -> [f32; FEATURE_COUNT] {
+        [self.r_phi, self.d_phi, self.r_theta, self.d_theta]
+    }
+}
+
+/// The whole response divided by its maximum: the input of
+/// [`Kind::Response`](crate::Kind::Response) models. An all-zero response
+/// becomes all ones (flat: maximally ambiguous).
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct ResponseFeatures {
+    /// Normalised match values in [0, 1], one per view, in database order.
+    pub values: Vec<f32>,
+}
+
+impl ResponseFeatures {
+    /// Normalises `response`; errors as [`normalise_into`] does.
+    pub fn compute(response: &[f32]) -> Result<ResponseFeatures, ConfidenceError> {
+        let mut values = vec![0.0; response.len()];
+        normalise_into(response, &mut values)?;
+        Ok(ResponseFeatures { values })
+    }
+}
+
+/// Writes `response / max(response)` into `out` without allocating.
+///
+/// Errors when the response is empty, holds a negative or non-finite value,
+/// or `out` has another length.
+pub fn normalise_into(response: &[f32], out: &mut [f32]) -> Result<(), ConfidenceError> {
+    let (_, g) = scan_response(response)?;
+    if out.len() != response.len() {
+        return Err(ConfidenceError::LengthMismatch {
+            what: "output buffer",
+            expected: response.len(),
+            found: out.len(),
+        });
+    }
+    for (o, &v) in out.iter_mut().zip(response) {
+        *o = normalised(v, g);
+    }
+    Ok(())
+}
+
+/// `v / g` for a response whose maximum is `g` (1 for a zero response).
+pub(crate) fn normalised(v: f32, g: f32) -> f32 {
+    if g > 0.0 {
+        (v / g).clamp(0.0, 1.0)
+    } else {
+        1.0
+    }
+}
+
+/// Checks a response and returns its first maximum `(index, value)`.
+pub(crate) fn scan_response(response: &[f32]) -> Result<(usize, f32), ConfidenceError> {
+    if response.is_empty() {
+        return Err(ConfidenceError::EmptyResponse);
+    }
+    let mut best = (0, response[0]);
+    for (i, &v) in response.iter().enumerate() {
+        if !v.is_finite() || v < 0.0 {
+            return Err(ConfidenceError::InvalidResponse { index: i, value: v });
+        }
+        if v > best.1 {
+            best = (i, v);
+        }
+    }
+    Ok(best)
+}
+
+/// Checks that the slices cover `0..n` contiguously, in order, each
+/// non-empty.
+fn check_slices(slices: &[Slice], n: usize) -> Result<(), ConfidenceError> {
+    let mut next = 0usize;
+    for s in slices {
+        if s.len == 0 {
+            return Err(ConfidenceError::BadSlices("a slice is empty"));
+        }
+        if s.start != next {
+            return Err(ConfidenceError::BadSlices(
+                "slices are not contiguous from the first view",
+            ));
+        }
+        next = s
+            .start
+            .checked_add(s.len)
+            .ok_or(ConfidenceError::BadSlices(
+                "a slice extends past the response",
+            ))?;
+    }
+    if next != n {
+        return Err(ConfidenceError::BadSlices(
+            "slices do not cover the response exactly",
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A grid of `thetas.len()` slices with `per_slice` views spaced evenly
+    /// in φ from 0°.
+    pub(crate) fn grid(thetas: &[f32], per_slice: usize) -> (Vec<Slice>, Vec<View>) {
+        let mut slices = Vec::new();
+        let mut views = Vec::new();
+        for &t in thetas {
+            slices.push(Slice {
+                theta_deg: t,
+                start: views.len(),
+                len: per_slice,
+            });
+            for k in 0..per_slice {
+                views.push(View {
+                    theta_deg: t,
+                    phi_deg: k as f32 * 360.0 / per_slice as f32,
+                    size_px: 100.0,
+                });
+            }
+        }
+        (slices, views)
+    }
+
+    const THETAS: [f32; 6] = [45.0, 50.0, 60.0, 70.0, 80.0, 90.0];
+
+    fn feats(r: &[f32], slices: &[Slice], views: &[View]) -> Features {
+        Features::compute(r, slices, views, &FeatureParams::default()).unwrap()
+    }
+
+    #[test]
+    fn one_clear_peak_is_unambiguous() {
+        let (slices, views) = grid(&THETAS, 36);
+        // A peak at slice 2, φ = 180°, falling off with a Gaussian in φ and
+        // θ over a floor of 0.3.
+        let r: Vec<f32> = views
+            .iter()
+            .map(|v| {
+                let dp = phi_error(v.phi_deg, 180.0) / 25.0;
+                let dt = (v.theta_deg - 60.0) / 8.0;
+                0.3 + 0.6 * (-(dp * dp + dt * dt) / 2.0).exp()
+            })
+            .collect();
+        let f = feats(&r, &slices, &views);
+        // Best beyond 20° is at 30°: 0.3 + 0.6 e^{-0.72} over 0.9.
+        let expect = (0.3 + 0.6 * (-(1.2f32 * 1.2) / 2.0).exp()) / 0.9;
+        assert!((f.r_phi - expect).abs() < 1e-5, "{f:?}");
+        assert_eq!(f.d_phi, 30.0);
+        // The neighbouring slices (50°, 70°) tie; both are one slice away.
+        assert_eq!(f.d_theta, 1.0);
+        assert!(f.r_theta < 0.9 && f.r_theta > 0.5, "{f:?}");
+
+        // A spike over a flat floor: both ratios are small.
+        let mut r = vec![0.1; views.len()];
+        r[2 * 36 + 18] = 0.9;
+        let f = feats(&r, &slices, &views);
+        assert!((f.r_phi - 0.1 / 0.9).abs() < 1e-6);
+        assert!((f.r_theta - 0.1 / 0.9).abs() < 1e-6);
+        assert_eq!(f.d_theta, 1.0);
+    }
+
+    #[test]
+    fn two_equal_peaks_half_a_turn_apart() {
+        let (slices, views) = grid(&THETAS, 36);
+        let mut r = vec![0.2; views.len()];
+        r[36 + 4] = 0.8; // φ = 40°
+        r[36 + 22] = 0.8; // φ = 220°
+        let f = feats(&r, &slices, &views);
+        assert_eq!(f.r_phi, 1.0);
+        assert_eq!(f.d_phi, 180.0);
+        assert!((f.r_theta - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn runner_up_two_slices_away() {
+        let (slices, views) = grid(&THETAS, 36);
+        let mut r = vec![0.1; views.len()];
+        r[2 * 36 + 5] = 0.9; // slice 2
+        r[4 * 36 + 30] = 0.6; // slice 4
+        r[36 + 5] = 0.5; // slice 1: a neighbour, but lower
+        let f = feats(&r, &slices, &views);
+        assert_eq!(f.d_theta, 2.0);
+        assert!((f.r_theta - 0.6 / 0.9).abs() < 1e-6);
+    }
+
+    #[test]
+    fn separation_wraps_around_zero() {
+        let (slices, views) = grid(&THETAS, 36);
+        let mut r = vec![0.1; views.len()];
+        let base = 3 * 36;
+        r[base] = 1.0; // φ = 0°
+        r[base + 35] = 0.95; // φ = 350°: 10° away, excluded
+        r[base + 34] = 0.93; // φ = 340°: exactly 20°, excluded
+        r[base + 1] = 0.94; // φ = 10°
+        r[base + 2] = 0.92; // φ = 20°
+        r[base + 33] = 0.5; // φ = 330°: 30° away, the runner-up
+        let f = feats(&r, &slices, &views);
+        assert!((f.r_phi - 0.5).abs() < 1e-6, "{f:?}");
+        assert_eq!(f.d_phi, 30.0);
+
+        // A wider separation moves the candidate set.
+        let p = FeatureParams {
+            min_phi_separation_deg: 5.0,
+        };
+        let f = Features::compute(&r, &slices, &views, &p).unwrap();
+        assert_eq!((f.r_phi, f.d_phi), (0.95, 10.0));
+    }
+
+    #[test]
+    fn degenerate_grids() {
+        // One slice: no θ evidence.
+        let (slices, views) = grid(&[60.0], 36);
+        let mut r = vec![0.1; 36];
+        r[7] = 0.7;
+        let f = feats(&r, &slices, &views);
+        assert_eq!((f.r_theta, f.d_theta), (0.0, 0.0));
+        // Slices too coarse for anything beyond 20°... with 1 view each.
+        let (slices, views) = grid(&[45.0, 60.0], 1);
+        let f = feats(&[0.4, 0.8], &slices, &views);
+        assert_eq!((f.r_phi, f.d_phi), (0.0, 0.0));
+        assert_eq!((f.r_theta, f.d_theta), (0.5, 1.0));
+        // All zero: flat, maximally ambiguous.
+        let (slices, views) = grid(&THETAS, 36);
+        let f = feats(&vec![0.0; views.len()], &slices, &views);
+        assert_eq!((f.r_phi, f.r_theta, f.d_theta), (1.0, 1.0, 1.0));
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let (slices, views) = grid(&THETAS, 36);
+        let p = FeatureParams::default();
+        let r = vec![0.5; views.len()];
+        assert!(matches!(
+            Features::compute(&[], &slices, &views, &p),
+            Err(ConfidenceError::EmptyResponse)
+        ));
+        let mut bad = r.clone();
+        bad[3] = f32::NAN;
+        assert!(matches!(
+            Features::compute(&bad, &slices, &views, &p),
+            Err(ConfidenceError::InvalidResponse { index: 3, .. })
+        ));
+        bad[3] = -0.5;
+        assert!(Features::compute(&bad, &slices, &views, &p).is_err());
+        assert!(matches!(
+            Features::compute(&r[1..], &slices, &views, &p),
+            Err(ConfidenceError::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            Features::compute(&r, &slices[1..], &views, &p),
+            Err(ConfidenceError::BadSlices(_))
+        ));
+        let mut s = slices.clone();
+        s[2].len = 0;
+        assert!(Features::compute(&r, &s, &views, &p).is_err());
+        s[2].len = usize::MAX;
+        assert!(Features::compute(&r, &s, &views, &p).is_err());
+        let mut v = views.clone();
+        v[1].phi_deg = f32::NAN;
+        assert!(matches!(
+            Features::compute(&r, &slices, &v, &p),
+            Err(ConfidenceError::InvalidView { index: 1 })
+        ));
+        let p = FeatureParams {
+            min_phi_separation_deg: f32::NAN,
+        };
+        assert!(matches!(
+            Features::compute(&r, &slices, &views, &p),
+            Err(ConfidenceError::InvalidConfig(_))
+        ));
+    }
+
+    #[test]
+    fn response_normalisation() {
+        let rf = ResponseFeatures::compute(&[0.2, 0.4, 0.1]).unwrap();
+        assert_eq!(rf.values, vec![0.5, 1.0, 0.25]);
+        let rf = ResponseFeatures::compute(&[0.0, 0.0]).unwrap();
+        assert_eq!(rf.values, vec![1.0, 1.0]);
+        let mut out = [0.0; 2];
+        assert!(normalise_into(&[0.1, 0.2, 0.3], &mut out).is_err());
+        assert!(ResponseFeatures::compute(&[0.1, f32::INFINITY]).is_err());
+    }
+}

@@ -1,0 +1,214 @@
+//! Confidence rating of a 2-DOF estimate from its match-value response
+//! (paper, section 4).
+//!
+//! An estimate read off an ambiguous response — several local maxima of
+//! similar height, in φ within the best elevation or across elevations — is
+//! likely wrong. A small feed-forward network turns the response into the
+//! probability `h(x)` that the estimate is reliable; the pipeline rejects
+//! it below a threshold ([`DEFAULT_THRESHOLD`] = 0.8, as in the paper).
+//!
+//! * [`features`]: the four features R_φ, D_φ, R_θ, D_θ (with their exact
+//!   definitions) and the normalised response.
+//! * [`Model`]: the network (standardised inputs, one tanh hidden layer,
+//!   sigmoid output) of either [`Kind`], trained with [`train`] by
+//!   full-batch Adam on the cross-entropy of eq. 3; [`Model::rate`] is the
+//!   allocation-free per-frame call; [`Model::to_bytes`] /
+//!   [`Model::from_bytes`] are the format of the database's
+//!   `"confidence"` section ([`SECTION`]).
+//! * [`eval`]: ROC AUC, reliability bins and acceptance statistics.
+//! * [`Tolerance`]: the ground-truth label of an estimate (failure =
+//!   |Δθ| > 10° or |Δφ| > 20°).
+
+#![warn(missing_docs)]
+
+pub mod eval;
+pub mod features;
+mod model;
+mod network;
+
+pub use eval::{Acceptance, Bin, expected_calibration_error, reliability_bins, roc_auc};
+pub use features::{
+    DEFAULT_MIN_PHI_SEPARATION_DEG, FEATURE_COUNT, FeatureParams, Features, ResponseFeatures,
+    normalise_into,
+};
+pub use model::{
+    ClassWeighting, Kind, MAX_HIDDEN, MODEL_FORMAT_VERSION, Model, TrainConfig, train,
+    train_with_progress,
+};
+
+/// The paper's acceptance threshold: estimates rated below 0.8 are
+/// rejected.
+pub const DEFAULT_THRESHOLD: f32 = 0.8;
+
+/// Name of the view-database section that holds the model.
+pub const SECTION: &str = "confidence";
+
+/// Why a response could not be rated, a model trained or loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfidenceError {
+    /// The response has no values.
+    #[error("the match-value response is empty")]
+    EmptyResponse,
+    /// A match value is negative or not a finite number.
+    #[error("match value {index} is {value}: expected a finite, non-negative number")]
+    InvalidResponse {
+        /// Index of the view.
+        index: usize,
+        /// The value.
+        value: f32,
+    },
+    /// Two inputs that must have the same length do not.
+    #[error("{what} has {found} entries, the response has {expected}")]
+    LengthMismatch {
+        /// Which input.
+        what: &'static str,
+        /// The response length.
+        expected: usize,
+        /// The input's length.
+        found: usize,
+    },
+    /// A view used by the features has a non-finite azimuth.
+    #[error("view {index} has a non-finite azimuth")]
+    InvalidView {
+        /// Index of the view.
+        index: usize,
+    },
+    /// The slices do not split the response into runs.
+    #[error("invalid θ slices: {0}")]
+    BadSlices(&'static str),
+    /// The network expects another number of inputs.
+    #[error("the model has {expected} inputs but was given {found}")]
+    InputSize {
+        /// The model's inputs.
+        expected: usize,
+        /// Inputs given.
+        found: usize,
+    },
+    /// A setting is out of range.
+    #[error("invalid confidence setting: {0}")]
+    InvalidConfig(String),
+    /// Training was given no samples.
+    #[error("no training samples")]
+    NoSamples,
+    /// A training sample is unusable.
+    #[error("training sample {index}: {reason}")]
+    InvalidSample {
+        /// Index of the sample.
+        index: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The training set has only one class.
+    #[error(
+        "training needs reliable and unreliable examples, got {reliable} reliable and {unreliable} unreliable"
+    )]
+    OneClass {
+        /// Reliable examples.
+        reliable: usize,
+        /// Unreliable examples.
+        unreliable: usize,
+    },
+    /// The optimisation produced non-finite weights (learning rate too
+    /// high).
+    #[error("training diverged (non-finite weights); lower the learning rate")]
+    Diverged,
+    /// The database has no confidence section.
+    #[error("the database has no '{SECTION}' section; train a confidence model first")]
+    MissingSection,
+    /// The bytes are not a confidence model.
+    #[error("not a confidence model (bad magic bytes)")]
+    BadMagic,
+    /// Written by another format version.
+    #[error(
+        "confidence model format version {found} is not supported (this build reads version {supported}); retrain it"
+    )]
+    UnsupportedVersion {
+        /// Version in the bytes.
+        found: u32,
+        /// Version this build reads.
+        supported: u32,
+    },
+    /// The bytes end early.
+    #[error("confidence model truncated: expected {expected} bytes, found {found}")]
+    Truncated {
+        /// Bytes needed.
+        expected: usize,
+        /// Bytes present.
+        found: usize,
+    },
+    /// The bytes are inconsistent.
+    #[error("corrupt confidence model: {0}")]
+    Corrupt(String),
+}
+
+/// The verdict on one estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rating {
+    /// Probability that the estimate is reliable, in [0, 1].
+    pub confidence: f32,
+    /// Whether it reaches the threshold.
+    pub accepted: bool,
+}
+
+impl Rating {
+    /// Accepts `confidence` when it is at least `threshold` (the paper
+    /// rejects h(x) < 0.8). A NaN confidence is rejected.
+    pub fn new(confidence: f32, threshold: f32) -> Rating {
+        Rating {
+            confidence,
+            accepted: confidence >= threshold,
+        }
+    }
+}
+
+/// When an estimate counts as a success for labelling training data:
+/// within `theta_deg` in elevation and `phi_deg` (wrapped) in azimuth of the
+/// ground truth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tolerance {
+    /// Largest elevation error of a success, degrees.
+    pub theta_deg: f32,
+    /// Largest wrapped azimuth error of a success, degrees.
+    pub phi_deg: f32,
+}
+
+impl Default for Tolerance {
+    /// Failure = |Δθ| > 10° or |Δφ| > 20°.
+    fn default() -> Self {
+        Tolerance {
+            theta_deg: 10.0,
+            phi_deg: 20.0,
+        }
+    }
+}
+
+impl Tolerance {
+    /// Whether the estimate (θ, φ) is within tolerance of the truth; the
+    /// label `d_n` of eq. 3. Non-finite angles are failures.
+    pub fn reliable(&self, estimate: (f32, f32), truth: (f32, f32)) -> bool {
+        let dt = (estimate.0 - truth.0).abs();
+        let dp = acch_pose::phi_error(estimate.1, truth.1);
+        dt <= self.theta_deg && dp <= self.phi_deg
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rating_threshold() {
+        assert!(Rating::new(0.8, DEFAULT_THRESHOLD).accepted);
+        assert!(!Rating::new(0.79, DEFAULT_THRESHOLD).accepted);
+        assert!(!Rating::new(f32::NAN, DEFAULT_THRESHOLD).accepted);
+    }
+
+    #[test]
+    fn tolerance_labels() {
+        let t = Tolerance::default();
+        assert!(t.reliable((50.0, 355.0), (60.0, 15.0)));
+        assert!(!t.reliable((50.0, 355.0), (60.5, 15.0)));
+        assert!(!t.reliable((50.0, 350.0), (60.0, 15.0)));
+        assert!(!t.reliable((f32::NAN, 0.0), (60.0, 0.0)));
+    }
+}

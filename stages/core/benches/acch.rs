@@ -1,0 +1,185 @@
+//! Benchmarks of the ACCH hot paths: histogram extraction over 64, 128 and
+//! 256 px square ROIs (default stride 2, and stride 1 which visits every
+//! pixel like scikit-image's `graycomatrix`), histogram intersection and the
+//! response of a 216-view database.
+//!
+//! `cargo bench -p acch-core --bench acch` runs them (see bench/README.md).
+//! With `ACCH_BENCH_DUMP=FILE` set, the bench instead writes the test image's
+//! CRC-32, the default offsets and the stride-1 128 px histogram counts as
+//! JSON, which `bench/graycomatrix.py --rust-dump FILE` checks against
+//! `graycomatrix`, and exits.
+
+use acch_core::{
+    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, Rect, View,
+    ViewDatabase, intersection,
+};
+use criterion::{BenchmarkId, Criterion};
+use std::hint::black_box;
+use std::time::Duration;
+
+/// Side of the test image; every ROI is its top-left `n` x `n` corner.
+const SIDE: u32 = 256;
+/// ROI sides benchmarked.
+const ROIS: [u32; 3] = [64, 128, 256];
+/// Palette size (the default C).
+const COLOURS: u32 = 40;
+/// CRC-32 of the 256x256 test image; bench/graycomatrix.py asserts the same.
+const IMAGE_CRC32: u32 = 0xBDC0_63DA;
+
+/// Palette index of pixel (x, y): 8x8 blocks of a colour that varies from
+/// block to block, with a quarter of the pixels replaced by hashed noise.
+/// Integer-only so that bench/graycomatrix.py reproduces it exactly.
+fn texture(x: u32, y: u32) -> u8 {
+    let mut h = x.wrapping_mul(0x9E37_79B1) ^ y.wrapping_mul(0x85EB_CA77);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0xC2B2_AE3D);
+    h ^= h >> 13;
+    let (bx, by) = (x / 8, y / 8);
+    let block = (bx * 7 + by * 13 + bx * by) % COLOURS;
+    if h.is_multiple_of(4) {
+        ((h >> 8) % COLOURS) as u8
+    } else {
+        block as u8
+    }
+}
+
+fn test_image() -> IndexImage {
+    let data = (0..SIDE * SIDE)
+        .map(|i| texture(i % SIDE, i / SIDE))
+        .collect();
+    let image = IndexImage::new(SIDE, SIDE, data);
+    let crc = crc32fast::hash(&image.data);
+    assert_eq!(crc, IMAGE_CRC32, "test image changed: CRC-32 {crc:08x}");
+    image
+}
+
+fn roi(n: u32) -> Rect {
+    Rect {
+        x: 0,
+        y: 0,
+        width: n,
+        height: n,
+    }
+}
+
+fn stride1() -> HistogramParams {
+    HistogramParams {
+        stride: 1,
+        ..HistogramParams::default()
+    }
+}
+
+/// Writes the JSON that bench/graycomatrix.py --rust-dump checks.
+fn dump(path: &str, image: &IndexImage, mask: &[u8]) {
+    let params = stride1();
+    let mut e = HistogramExtractor::new(params).expect("valid params");
+    let mut h = vec![0.0; params.len()];
+    let pairs = e.extract(image, Some(mask), roi(128), 1.0, &mut h);
+    let counts: Vec<String> = h
+        .iter()
+        .map(|&v| format!("{}", (v as f64 * pairs as f64).round() as u64))
+        .collect();
+    let offsets: Vec<String> = params
+        .offsets(1.0)
+        .iter()
+        .map(|&(dx, dy, d)| format!("[{dx},{dy},{d}]"))
+        .collect();
+    let json = format!(
+        "{{\"image_crc32\":{},\"side\":{SIDE},\"roi\":128,\"colours\":{},\"bins\":{},\"stride\":1,\
+         \"pairs\":{pairs},\"offsets\":[{}],\"counts\":[{}]}}\n",
+        crc32fast::hash(&image.data),
+        params.colours,
+        params.bins,
+        offsets.join(","),
+        counts.join(",")
+    );
+    std::fs::write(path, json).unwrap_or_else(|e| panic!("{path}: {e}"));
+    eprintln!("wrote {path}");
+}
+
+fn bench_extract(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
+    let mut group = c.benchmark_group("acch_extract");
+    for (name, params) in [
+        ("stride2", HistogramParams::default()),
+        ("stride1", stride1()),
+    ] {
+        let mut e = HistogramExtractor::new(params).expect("valid params");
+        let mut out = vec![0.0; params.len()];
+        for n in ROIS {
+            group.bench_with_input(BenchmarkId::new(name, n), &n, |b, &n| {
+                b.iter(|| e.extract(image, Some(mask), black_box(roi(n)), 1.0, &mut out))
+            });
+        }
+    }
+    group.finish();
+}
+
+/// 216 histograms of 128 px ROIs at different places of the test image.
+fn view_histograms(image: &IndexImage, mask: &[u8]) -> Vec<Vec<f32>> {
+    let params = HistogramParams::default();
+    let mut e = HistogramExtractor::new(params).expect("valid params");
+    (0..216u32)
+        .map(|i| {
+            let mut h = vec![0.0; params.len()];
+            let r = Rect {
+                x: i * 7 % 128,
+                y: i * 13 % 128,
+                width: 128,
+                height: 128,
+            };
+            e.extract(image, Some(mask), r, 1.0, &mut h);
+            h
+        })
+        .collect()
+}
+
+fn bench_matching(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
+    let views = view_histograms(image, mask);
+    let params = HistogramParams::default();
+    let (query, other) = (&views[0], &views[101]);
+    c.bench_function(&format!("intersection/{}", params.len()), |b| {
+        b.iter(|| intersection(black_box(query), black_box(other)))
+    });
+
+    let centres: Vec<[f32; 3]> = (0..COLOURS)
+        .map(|i| {
+            [
+                (i % 4) as f32 / 3.0,
+                (i / 4 % 5) as f32 / 4.0,
+                (i / 20) as f32,
+            ]
+        })
+        .collect();
+    let palette =
+        Palette::from_centres(ColourSpace::Rgb, centres, f32::INFINITY).expect("valid palette");
+    let mut db = ViewDatabase::new("bench", palette, params, 3.0);
+    for (i, h) in views.iter().enumerate() {
+        let view = View {
+            theta_deg: (i / 36) as f32 * 15.0,
+            phi_deg: (i % 36) as f32 * 10.0,
+            size_px: 128.0,
+        };
+        db.push_view(view, h);
+    }
+    let mut response = vec![0.0; db.views().len()];
+    c.bench_function(&format!("response_into/{}", db.views().len()), |b| {
+        b.iter(|| db.response_into(black_box(query), &mut response))
+    });
+}
+
+fn main() {
+    let image = test_image();
+    let mask = vec![1u8; image.data.len()];
+    if let Ok(path) = std::env::var("ACCH_BENCH_DUMP") {
+        dump(&path, &image, &mask);
+        return;
+    }
+    let mut c = Criterion::default()
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .sample_size(30)
+        .configure_from_args();
+    bench_extract(&mut c, &image, &mask);
+    bench_matching(&mut c, &image, &mask);
+    c.final_summary();
+}

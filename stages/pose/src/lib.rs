@@ -1,0 +1,350 @@
+//! 2-DOF pose from the ACCH of a segmented object: the match-value response
+//! over every training view, its maximum (winner takes all), and a
+//! refinement between grid points.
+//!
+//! Training lives here too ([`train`]): it turns labelled, masked views into a
+//! [`ViewDatabase`]. Where the views come from (renderer, image folder) is the
+//! caller's business.
+
+#![warn(missing_docs)]
+
+pub mod train;
+
+use acch_core::{HistogramExtractor, IndexImage, Rect, ViewDatabase};
+
+/// Why an estimator could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PoseError {
+    /// The database has no views.
+    #[error("the view database has no views")]
+    Empty,
+    /// The database's histogram parameters are invalid.
+    #[error(transparent)]
+    Params(#[from] acch_core::histogram::HistogramError),
+}
+
+/// One θ slice of the response: consecutive views with the same elevation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slice {
+    /// Elevation of the slice, degrees.
+    pub theta_deg: f32,
+    /// Index of its first view.
+    pub start: usize,
+    /// Number of views.
+    pub len: usize,
+}
+
+/// How the estimate is read off the response.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Refinement {
+    /// The best view's (θ, φ): the paper's winner takes all.
+    WinnerTakesAll,
+    /// A parabola through the peak and its neighbours, in φ within the slice
+    /// and in θ across slices.
+    #[default]
+    Parabolic,
+}
+
+/// A 2-DOF estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Elevation, degrees.
+    pub theta_deg: f32,
+    /// Azimuth, degrees in [0, 360).
+    pub phi_deg: f32,
+    /// Index of the best view.
+    pub best_view: usize,
+    /// Its match value.
+    pub best_value: f32,
+    /// Scale the histogram was computed at.
+    pub scale: f32,
+}
+
+/// Splits views into θ slices (runs of equal elevation, in database order).
+pub fn slices(db: &ViewDatabase) -> Vec<Slice> {
+    let mut out: Vec<Slice> = Vec::new();
+    for (i, v) in db.views().iter().enumerate() {
+        match out.last_mut() {
+            Some(s) if s.theta_deg == v.theta_deg => s.len += 1,
+            _ => out.push(Slice {
+                theta_deg: v.theta_deg,
+                start: i,
+                len: 1,
+            }),
+        }
+    }
+    out
+}
+
+/// Smallest angle between two azimuths, degrees in [0, 180].
+pub fn phi_error(a: f32, b: f32) -> f32 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
+
+/// Estimates poses against one database, reusing its buffers (no allocation
+/// per frame once warm).
+pub struct PoseEstimator {
+    db: ViewDatabase,
+    slices: Vec<Slice>,
+    /// Slice of each view.
+    slice_of: Vec<usize>,
+    extractor: HistogramExtractor,
+    histogram: Vec<f32>,
+    response: Vec<f32>,
+    median_size: f32,
+}
+
+impl PoseEstimator {
+    /// An estimator over `db`.
+    pub fn new(db: ViewDatabase) -> Result<Self, PoseError> {
+        if db.views().is_empty() {
+            return Err(PoseError::Empty);
+        }
+        let extractor = HistogramExtractor::new(db.params)?;
+        let slices = slices(&db);
+        let mut slice_of = vec![0; db.views().len()];
+        for (k, s) in slices.iter().enumerate() {
+            slice_of[s.start..s.start + s.len].fill(k);
+        }
+        Ok(PoseEstimator {
+            histogram: vec![0.0; db.params.len()],
+            response: vec![0.0; db.views().len()],
+            median_size: db.median_size_px(),
+            slices,
+            slice_of,
+            extractor,
+            db,
+        })
+    }
+
+    /// The database.
+    pub fn database(&self) -> &ViewDatabase {
+        &self.db
+    }
+
+    /// The θ slices of the database.
+    pub fn slices(&self) -> &[Slice] {
+        &self.slices
+    }
+
+    /// The response of the last estimate: match value per view.
+    pub fn response(&self) -> &[f32] {
+        &self.response
+    }
+
+    /// The histogram of the last estimate.
+    pub fn histogram(&self) -> &[f32] {
+        &self.histogram
+    }
+
+    /// Scale at which an object at `distance` (bounding radii) looks,
+    /// relative to training.
+    pub fn scale_for_distance(&self, distance: f32) -> f32 {
+        self.db.train_distance / distance
+    }
+
+    /// Computes the histogram of the masked ROI at `scale` and the response
+    /// against every view; returns the number of pixel pairs counted.
+    pub fn respond(
+        &mut self,
+        image: &IndexImage,
+        mask: Option<&[u8]>,
+        roi: Rect,
+        scale: f32,
+    ) -> u64 {
+        let pairs = self
+            .extractor
+            .extract(image, mask, roi, scale, &mut self.histogram);
+        self.db.response_into(&self.histogram, &mut self.response);
+        pairs
+    }
+
+    /// Estimates the pose of the masked object in `roi`. `scale` is the
+    /// object's apparent size relative to training when known (from the
+    /// distance); `None` derives it from the mask's area against the
+    /// training views, checked once against the best view's own size.
+    /// Returns `None` when the region holds no object colour pairs.
+    pub fn estimate(
+        &mut self,
+        image: &IndexImage,
+        mask: Option<&[u8]>,
+        roi: Rect,
+        scale: Option<f32>,
+        refinement: Refinement,
+    ) -> Option<Estimate> {
+        let (scale, best) = match scale {
+            Some(s) => {
+                if self.respond(image, mask, roi, s) == 0 {
+                    return None;
+                }
+                (s, self.best())
+            }
+            None => {
+                let size = object_size(image, mask, roi);
+                if size == 0.0 {
+                    return None;
+                }
+                let s0 = size / self.median_size;
+                if self.respond(image, mask, roi, s0) == 0 {
+                    return None;
+                }
+                let best = self.best();
+                // Apparent size changes with the view; once a view is chosen,
+                // its own training size gives a better scale.
+                let s1 = size / self.db.views()[best].size_px;
+                if (s1 / s0 - 1.0).abs() > 0.05 {
+                    self.respond(image, mask, roi, s1);
+                    (s1, self.best())
+                } else {
+                    (s0, best)
+                }
+            }
+        };
+        let (theta_deg, phi_deg) = match refinement {
+            Refinement::WinnerTakesAll => {
+                let v = self.db.views()[best];
+                (v.theta_deg, v.phi_deg)
+            }
+            Refinement::Parabolic => self.refine(best),
+        };
+        Some(Estimate {
+            theta_deg,
+            phi_deg: phi_deg.rem_euclid(360.0),
+            best_view: best,
+            best_value: self.response[best],
+            scale,
+        })
+    }
+
+    /// Index of the best view of the last response.
+    pub fn best(&self) -> usize {
+        argmax(&self.response)
+    }
+
+    /// The `k` best views of the last response, best first.
+    pub fn top(&self, k: usize) -> Vec<(usize, f32)> {
+        let mut idx: Vec<usize> = (0..self.response.len()).collect();
+        idx.sort_by(|&a, &b| self.response[b].total_cmp(&self.response[a]));
+        idx.truncate(k);
+        idx.into_iter().map(|i| (i, self.response[i])).collect()
+    }
+
+    /// Parabolic refinement around view `best`.
+    fn refine(&self, best: usize) -> (f32, f32) {
+        let views = self.db.views();
+        let r = &self.response;
+        let s = self.slices[self.slice_of[best]];
+        let k = best - s.start;
+        // φ: neighbours in the same slice, wrapping around 360°.
+        let mut phi = views[best].phi_deg;
+        if s.len >= 3 {
+            let prev = s.start + (k + s.len - 1) % s.len;
+            let next = s.start + (k + 1) % s.len;
+            let step = phi_error(views[next].phi_deg, views[prev].phi_deg) / 2.0;
+            let (a, b, c) = (r[prev], r[best], r[next]);
+            let denom = a - 2.0 * b + c;
+            if denom < 0.0 && step > 0.0 {
+                let delta = (0.5 * (a - c) / denom).clamp(-0.5, 0.5);
+                phi += delta * step;
+            }
+        }
+        // θ: the same azimuth in the neighbouring slices, whose spacing may
+        // differ (45, 50, 60, ...): fit a parabola through three points, or
+        // move toward the better neighbour at the edge of the grid.
+        let theta0 = views[best].theta_deg;
+        let slice_k = self.slice_of[best];
+        let at = |slice: usize| -> Option<(f32, f32)> {
+            let sl = self.slices.get(slice)?;
+            let j = (sl.start..sl.start + sl.len).min_by(|&x, &y| {
+                phi_error(views[x].phi_deg, views[best].phi_deg)
+                    .total_cmp(&phi_error(views[y].phi_deg, views[best].phi_deg))
+            })?;
+            Some((sl.theta_deg, r[j]))
+        };
+        let lower = slice_k.checked_sub(1).and_then(at);
+        let upper = at(slice_k + 1);
+        let b = r[best];
+        let theta = match (lower, upper) {
+            (Some((t0, a)), Some((t2, c))) => {
+                parabola_vertex((t0, a), (theta0, b), (t2, c)).unwrap_or(theta0)
+            }
+            _ => theta0,
+        };
+        (theta, phi)
+    }
+}
+
+/// x of the vertex of the parabola through three points, kept between the
+/// outer two points' midpoints with the centre; `None` if not a maximum.
+fn parabola_vertex(p0: (f32, f32), p1: (f32, f32), p2: (f32, f32)) -> Option<f32> {
+    let (x0, y0) = p0;
+    let (x1, y1) = p1;
+    let (x2, y2) = p2;
+    let d01 = (y1 - y0) / (x1 - x0);
+    let d12 = (y2 - y1) / (x2 - x1);
+    let a = (d12 - d01) / (x2 - x0);
+    // Only a downward parabola has a maximum (NaN from equal x is refused too).
+    if a.is_nan() || a >= 0.0 {
+        return None;
+    }
+    let b = d01 - a * (x0 + x1);
+    let v = -b / (2.0 * a);
+    Some(v.clamp((x0 + x1) / 2.0, (x1 + x2) / 2.0))
+}
+
+fn argmax(v: &[f32]) -> usize {
+    let mut best = 0;
+    for (i, &x) in v.iter().enumerate() {
+        if x > v[best] {
+            best = i;
+        }
+    }
+    best
+}
+
+/// Apparent size of the object in `roi`: the square root of its mask area
+/// (pixels whose mask byte is non-zero), or of the ROI without a mask.
+pub fn object_size(image: &IndexImage, mask: Option<&[u8]>, roi: Rect) -> f32 {
+    let roi = roi.clamp_to(image.width, image.height);
+    let area = match mask {
+        None => roi.area(),
+        Some(m) => {
+            let w = image.width as usize;
+            (roi.y as usize..(roi.y + roi.height) as usize)
+                .map(|y| {
+                    let row = &m[y * w + roi.x as usize..y * w + (roi.x + roi.width) as usize];
+                    row.iter().filter(|&&b| b != 0).count() as u64
+                })
+                .sum()
+        }
+    };
+    (area as f32).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phi_error_wraps() {
+        assert_eq!(phi_error(355.0, 5.0), 10.0);
+        assert_eq!(phi_error(5.0, 355.0), 10.0);
+        assert_eq!(phi_error(90.0, 270.0), 180.0);
+        assert_eq!(phi_error(10.0, 10.0), 0.0);
+    }
+
+    #[test]
+    fn parabola_finds_the_peak() {
+        // y = -(x - 53)^2 sampled at 45, 50, 60.
+        let f = |x: f32| -(x - 53.0) * (x - 53.0);
+        let v = parabola_vertex((45.0, f(45.0)), (50.0, f(50.0)), (60.0, f(60.0))).unwrap();
+        assert!((v - 53.0).abs() < 1e-3, "{v}");
+        // A minimum is no peak.
+        assert!(parabola_vertex((0.0, 1.0), (1.0, 0.0), (2.0, 1.0)).is_none());
+        // Far peaks are clamped to half the grid step.
+        let g = |x: f32| -(x - 70.0) * (x - 70.0);
+        let v = parabola_vertex((40.0, g(40.0)), (50.0, g(50.0)), (60.0, g(60.0))).unwrap();
+        assert_eq!(v, 55.0);
+    }
+}

@@ -1,0 +1,206 @@
+//! Training: a palette from the object's pixels, then one histogram per
+//! labelled view, in θ-slice order.
+
+use acch_core::{
+    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, Rect, View, ViewDatabase,
+};
+
+/// How to train a database.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// Palette size C.
+    pub colours: usize,
+    /// Colour space of the palette.
+    pub space: ColourSpace,
+    /// Quantile of training-pixel distances that sets the "not object"
+    /// threshold (see [`Palette::train`]); `None` keeps every colour.
+    pub reject_quantile: Option<f32>,
+    /// Histogram definition (its `colours` is overwritten by `colours`).
+    pub params: HistogramParams,
+    /// Seed of the k-means initialisation.
+    pub seed: u64,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            colours: 40,
+            space: ColourSpace::Lab,
+            reject_quantile: Some(0.99),
+            params: HistogramParams::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// One labelled training view: packed RGB, a mask (non-zero = object), and
+/// its pose.
+#[derive(Clone, Copy, Debug)]
+pub struct LabelledView<'a> {
+    /// `width * height * 3` bytes.
+    pub rgb: &'a [u8],
+    /// `width * height` bytes.
+    pub mask: &'a [u8],
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Elevation, degrees.
+    pub theta_deg: f32,
+    /// Azimuth, degrees.
+    pub phi_deg: f32,
+    /// Apparent size relative to the training distance (distance ratio
+    /// train / actual); 1 for views rendered at the training distance.
+    pub scale: f32,
+}
+
+/// Why training failed.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// No views, or no object pixels in them.
+    #[error("no training views with object pixels")]
+    NoViews,
+    /// A view's buffers do not match its size.
+    #[error("training view {index}: buffer sizes do not match {width}x{height}")]
+    BadView {
+        /// Index of the view.
+        index: usize,
+        /// Declared width.
+        width: u32,
+        /// Declared height.
+        height: u32,
+    },
+    /// The palette could not be trained.
+    #[error(transparent)]
+    Palette(#[from] acch_core::PaletteError),
+    /// Invalid histogram parameters.
+    #[error(transparent)]
+    Params(#[from] acch_core::histogram::HistogramError),
+}
+
+/// Bounding box of the non-zero bytes of a mask, or `None` when it is empty.
+pub fn mask_bbox(mask: &[u8], width: u32, height: u32) -> Option<Rect> {
+    let w = width as usize;
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for (y, row) in mask.chunks_exact(w).enumerate().take(height as usize) {
+        if let Some(first) = row.iter().position(|&b| b != 0) {
+            let last = w - 1 - row.iter().rev().position(|&b| b != 0).unwrap_or(0);
+            x0 = x0.min(first);
+            x1 = x1.max(last);
+            y0 = y0.min(y);
+            y1 = y;
+        }
+    }
+    (x0 != usize::MAX).then(|| Rect {
+        x: x0 as u32,
+        y: y0 as u32,
+        width: (x1 - x0 + 1) as u32,
+        height: (y1 - y0 + 1) as u32,
+    })
+}
+
+/// Trains a database from labelled views. Views are stored sorted by
+/// (θ, φ), so the response reads θ-slice by θ-slice.
+pub fn build_database(
+    object: &str,
+    train_distance: f32,
+    views: &[LabelledView<'_>],
+    config: &TrainConfig,
+) -> Result<ViewDatabase, TrainError> {
+    for (index, v) in views.iter().enumerate() {
+        let n = v.width as usize * v.height as usize;
+        if v.rgb.len() != n * 3 || v.mask.len() != n {
+            return Err(TrainError::BadView {
+                index,
+                width: v.width,
+                height: v.height,
+            });
+        }
+    }
+    // Palette pixels: a regular subsample of every view's object pixels, so
+    // each view contributes in proportion to its area.
+    let total: usize = views
+        .iter()
+        .map(|v| v.mask.iter().filter(|&&m| m != 0).count())
+        .sum();
+    if total == 0 {
+        return Err(TrainError::NoViews);
+    }
+    let step = (total / 200_000).max(1);
+    let mut pixels = Vec::with_capacity(total / step + 1);
+    let mut k = 0usize;
+    for v in views {
+        for (i, _) in v.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+            if k.is_multiple_of(step) {
+                pixels.push([v.rgb[3 * i], v.rgb[3 * i + 1], v.rgb[3 * i + 2]]);
+            }
+            k += 1;
+        }
+    }
+    let palette = Palette::train(
+        &pixels,
+        config.colours,
+        config.space,
+        config.reject_quantile,
+        config.seed,
+    )?;
+    let params = HistogramParams {
+        colours: config.colours as u16,
+        ..config.params
+    };
+    let mut extractor = HistogramExtractor::new(params)?;
+    let mut db = ViewDatabase::new(object, palette, params, train_distance);
+    let mut order: Vec<usize> = (0..views.len()).collect();
+    order.sort_by(|&a, &b| {
+        (views[a].theta_deg, views[a].phi_deg.rem_euclid(360.0))
+            .partial_cmp(&(views[b].theta_deg, views[b].phi_deg.rem_euclid(360.0)))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut index = IndexImage::default();
+    let mut hist = vec![0.0; params.len()];
+    for i in order {
+        let v = &views[i];
+        let Some(roi) = mask_bbox(v.mask, v.width, v.height) else {
+            continue;
+        };
+        db.palette
+            .quantise_into(v.rgb, v.width, v.height, &mut index);
+        extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
+        let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
+        db.push_view(
+            View {
+                theta_deg: v.theta_deg,
+                phi_deg: v.phi_deg.rem_euclid(360.0),
+                // Sizes are kept at the training scale.
+                size_px: area.sqrt() / v.scale,
+            },
+            &hist,
+        );
+    }
+    if db.views().is_empty() {
+        return Err(TrainError::NoViews);
+    }
+    Ok(db)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bbox_of_mask() {
+        let mut m = vec![0u8; 5 * 4];
+        assert_eq!(mask_bbox(&m, 5, 4), None);
+        m[5 + 1] = 1;
+        m[2 * 5 + 3] = 255;
+        assert_eq!(
+            mask_bbox(&m, 5, 4),
+            Some(Rect {
+                x: 1,
+                y: 1,
+                width: 3,
+                height: 2
+            })
+        );
+    }
+}

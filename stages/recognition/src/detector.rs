@@ -1,0 +1,465 @@
+//! The per-frame window scan.
+
+use acch_core::{IndexImage, Rect};
+
+use crate::model::{RecognitionError, RecognitionModel};
+
+/// A rectangle of cells, `[x0, x1) x [y0, y1)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct CellRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl CellRect {
+    /// Columns.
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    /// Rows.
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    /// Whether the rectangle holds no cell.
+    pub fn is_empty(&self) -> bool {
+        self.x1 <= self.x0 || self.y1 <= self.y0
+    }
+}
+
+/// The best window of a frame, when its score reaches the model's threshold.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Detection {
+    /// The window in pixels, cut to the frame.
+    pub window: Rect,
+    /// The window in cells, cut to the frame.
+    pub cells: CellRect,
+    /// Its vote: the share of the object model found in the window's visible
+    /// part, in [0, 1].
+    pub score: f32,
+    /// The model's threshold the score was compared with.
+    pub threshold: f32,
+    /// Scale (apparent size relative to training) the window was sized for.
+    pub scale: f32,
+    /// Whether the window hangs over the frame border (the object may be
+    /// partly outside the view).
+    pub truncated: bool,
+}
+
+/// Window scores of the last scan, one per window position (row-major), for
+/// a heat map. Position (i, j) is the window whose top-left cell is
+/// `(origin.0 + i, origin.1 + j)`; positions skipped for lying mostly outside
+/// the frame score 0.
+#[derive(Clone, Copy, Debug)]
+pub struct HeatMap<'a> {
+    /// Scores, `width * height`.
+    pub scores: &'a [f32],
+    /// Positions per row.
+    pub width: usize,
+    /// Rows of positions.
+    pub height: usize,
+    /// Cell coordinates of the first position's top-left cell (may be negative).
+    pub origin: (i32, i32),
+    /// Window size in cells.
+    pub window_cells: u32,
+    /// Cell side in pixels.
+    pub cell_px: u32,
+}
+
+/// Scans frames for one object. Holds every buffer it needs: after
+/// construction, frames of the same size cause no allocation.
+#[derive(Clone, Debug)]
+pub struct Detector {
+    model: RecognitionModel,
+    width: u32,
+    height: u32,
+    cell: usize,
+    gx: usize,
+    gy: usize,
+    /// Colour features 0..C, NOT_OBJECT at C, pairs at C+1.., a discard slot
+    /// last; padded.
+    nf: usize,
+    discard: usize,
+    colour_feature: [u16; 256],
+    pair_lut: Vec<u16>,
+    /// Model counts per object pixel, per feature.
+    freq: Vec<f32>,
+    /// Vote weight per feature (part weight / part total), per object pixel.
+    vote: Vec<f32>,
+    cell_counts: Vec<u16>,
+    integral: Vec<f32>,
+    expected: Vec<f32>,
+    weight: Vec<f32>,
+    run: Vec<f32>,
+    scores: Vec<f32>,
+    heat_w: usize,
+    heat_h: usize,
+    heat_origin: (i32, i32),
+    window_cells: u32,
+    best: f32,
+    prepared: bool,
+}
+
+impl Detector {
+    /// A detector for `width` x `height` frames.
+    pub fn new(model: RecognitionModel, width: u32, height: u32) -> Result<Self, RecognitionError> {
+        model.params.validate()?;
+        if width == 0 || height == 0 {
+            return Err(RecognitionError::EmptyFrame { width, height });
+        }
+        let c = model.colours();
+        let k = model.pairs.len();
+        let discard = c + 1 + k;
+        let nf = (discard + 1).next_multiple_of(8);
+        let mut colour_feature = [c as u16; 256];
+        for (i, f) in colour_feature.iter_mut().enumerate().take(c) {
+            *f = i as u16;
+        }
+        let mut pair_lut = vec![discard as u16; 256 * 256];
+        for (p, &(a, b, _)) in model.pairs.iter().enumerate() {
+            let f = (c + 1 + p) as u16;
+            pair_lut[(a as usize) << 8 | b as usize] = f;
+            pair_lut[(b as usize) << 8 | a as usize] = f;
+        }
+        let mut freq = vec![0f32; nf];
+        freq[..c].copy_from_slice(&model.colour_freq);
+        for (p, &(_, _, f)) in model.pairs.iter().enumerate() {
+            freq[c + 1 + p] = f;
+        }
+        let col_total: f32 = model.colour_freq.iter().sum();
+        let pair_total: f32 = model.pairs.iter().map(|p| p.2).sum();
+        let alpha = if pair_total > 0.0 {
+            model.params.colour_weight
+        } else {
+            1.0
+        };
+        let mut vote = vec![0f32; nf];
+        if col_total > 0.0 {
+            vote[..c].fill(alpha / col_total);
+        }
+        if pair_total > 0.0 {
+            vote[c + 1..c + 1 + k].fill((1.0 - alpha) / pair_total);
+        }
+        let mut det = Detector {
+            model,
+            width: 0,
+            height: 0,
+            cell: 0,
+            gx: 0,
+            gy: 0,
+            nf,
+            discard,
+            colour_feature,
+            pair_lut,
+            freq,
+            vote,
+            cell_counts: Vec::new(),
+            integral: Vec::new(),
+            expected: vec![0.0; nf],
+            weight: vec![0.0; nf],
+            run: vec![0.0; nf],
+            scores: Vec::new(),
+            heat_w: 0,
+            heat_h: 0,
+            heat_origin: (0, 0),
+            window_cells: 0,
+            best: 0.0,
+            prepared: false,
+        };
+        det.resize(width, height);
+        Ok(det)
+    }
+
+    fn resize(&mut self, width: u32, height: u32) {
+        let cell = self.model.params.cell_px as usize;
+        self.width = width;
+        self.height = height;
+        self.cell = cell;
+        self.gx = (width as usize).div_ceil(cell);
+        self.gy = (height as usize).div_ceil(cell);
+        self.cell_counts = vec![0; self.gx * self.gy * self.nf];
+        self.integral = vec![0.0; (self.gx + 1) * (self.gy + 1) * self.nf];
+        self.prepared = false;
+    }
+
+    /// The model.
+    pub fn model(&self) -> &RecognitionModel {
+        &self.model
+    }
+
+    /// Frame size the buffers are laid out for.
+    pub fn frame_size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Cell grid size (columns, rows).
+    pub fn grid(&self) -> (usize, usize) {
+        (self.gx, self.gy)
+    }
+
+    /// Cell side in pixels.
+    pub fn cell_px(&self) -> u32 {
+        self.cell as u32
+    }
+
+    /// Feature layout: (colours C, pairs K, stride of a cell's counts). Cell
+    /// counts hold colours at 0..C, "not object" at C and pairs at C+1..C+1+K.
+    pub fn layout(&self) -> (usize, usize, usize) {
+        (self.model.colours(), self.model.pairs.len(), self.nf)
+    }
+
+    /// Counts of the last prepared frame for cell (cx, cy), [`Detector::layout`]
+    /// order.
+    pub fn cell_counts(&self, cx: usize, cy: usize) -> &[u16] {
+        let i = (cy * self.gx + cx) * self.nf;
+        &self.cell_counts[i..i + self.nf]
+    }
+
+    /// Sums of every feature over a rectangle of cells of the last prepared
+    /// frame, into `out` (length of the cell stride).
+    pub fn sum_cells(&self, r: CellRect, out: &mut [f32]) {
+        let nf = self.nf;
+        let row = self.gx + 1;
+        let at = |x: u32, y: u32| (y as usize * row + x as usize) * nf;
+        let (a, b, c, d) = (
+            at(r.x0, r.y0),
+            at(r.x1, r.y0),
+            at(r.x0, r.y1),
+            at(r.x1, r.y1),
+        );
+        let ig = &self.integral;
+        for (f, o) in out.iter_mut().enumerate().take(nf) {
+            *o = ig[d + f] - ig[c + f] - ig[b + f] + ig[a + f];
+        }
+    }
+
+    /// Model count of each feature per object pixel ([`Detector::layout`] order).
+    pub fn model_freq(&self) -> &[f32] {
+        &self.freq
+    }
+
+    /// Best window score of the last scan (also when below the threshold).
+    pub fn best_score(&self) -> f32 {
+        self.best
+    }
+
+    /// Window size in cells of the last scan.
+    pub fn window_cells(&self) -> u32 {
+        self.window_cells
+    }
+
+    /// Window scores of the last scan.
+    pub fn heat_map(&self) -> HeatMap<'_> {
+        HeatMap {
+            scores: &self.scores[..self.heat_w * self.heat_h],
+            width: self.heat_w,
+            height: self.heat_h,
+            origin: self.heat_origin,
+            window_cells: self.window_cells,
+            cell_px: self.cell as u32,
+        }
+    }
+
+    /// Computes the per-cell counts of a frame and their integral over the
+    /// cell grid. [`Detector::detect`] calls it; call it directly to scan one
+    /// frame at several scales with [`Detector::scan`].
+    pub fn prepare(&mut self, image: &IndexImage) {
+        if image.width != self.width || image.height != self.height {
+            self.resize(image.width, image.height);
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (cell, gx, gy, nf) = (self.cell, self.gx, self.gy, self.nf);
+        let d = self.model.params.pair_distance as usize;
+        let data = &image.data[..w * h];
+        self.cell_counts.fill(0);
+        let cf = &self.colour_feature;
+        let lut = &self.pair_lut[..];
+        let discard = self.discard;
+        for cy in 0..gy {
+            let y_lo = cy * cell;
+            let y_hi = (y_lo + cell).min(h);
+            let cells = &mut self.cell_counts[cy * gx * nf..(cy + 1) * gx * nf];
+            for y in y_lo..y_hi {
+                let row = &data[y * w..(y + 1) * w];
+                let down = (y + d < h).then(|| &data[(y + d) * w..(y + d + 1) * w]);
+                for (cx, counts) in cells.chunks_exact_mut(nf).enumerate() {
+                    let x_lo = cx * cell;
+                    let x_hi = (x_lo + cell).min(w);
+                    let counts: &mut [u16] = &mut counts[..nf];
+                    let x_pair = x_hi.min(w.saturating_sub(d)).max(x_lo);
+                    match down {
+                        Some(down) => {
+                            for x in x_lo..x_pair {
+                                let a = row[x] as usize;
+                                counts[cf[a] as usize] += 1;
+                                counts[lut[a << 8 | row[x + d] as usize] as usize] += 1;
+                                counts[lut[a << 8 | down[x] as usize] as usize] += 1;
+                            }
+                            for x in x_pair..x_hi {
+                                let a = row[x] as usize;
+                                counts[cf[a] as usize] += 1;
+                                counts[lut[a << 8 | down[x] as usize] as usize] += 1;
+                            }
+                        }
+                        None => {
+                            for x in x_lo..x_pair {
+                                let a = row[x] as usize;
+                                counts[cf[a] as usize] += 1;
+                                counts[lut[a << 8 | row[x + d] as usize] as usize] += 1;
+                            }
+                            for x in x_pair..x_hi {
+                                counts[cf[row[x] as usize] as usize] += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Integral over the cell grid: I(x, y) = sum of cells left of x and
+        // above y. The discard slot is cleared so that it never votes.
+        let row = gx + 1;
+        self.integral[..row * nf].fill(0.0);
+        let mut run = std::mem::take(&mut self.run);
+        for cy in 0..gy {
+            run.fill(0.0);
+            let base = (cy + 1) * row * nf;
+            self.integral[base..base + nf].fill(0.0);
+            for cx in 0..gx {
+                let counts = &self.cell_counts[(cy * gx + cx) * nf..(cy * gx + cx + 1) * nf];
+                for (r, &c) in run.iter_mut().zip(counts) {
+                    *r += c as f32;
+                }
+                run[discard] = 0.0;
+                let (above, here) = self.integral.split_at_mut(base);
+                let up = &above[(cy * row + cx + 1) * nf..(cy * row + cx + 2) * nf];
+                let out = &mut here[(cx + 1) * nf..(cx + 2) * nf];
+                for ((o, &u), &r) in out.iter_mut().zip(up).zip(run.iter()) {
+                    *o = u + r;
+                }
+            }
+        }
+        self.run = run;
+        self.prepared = true;
+    }
+
+    /// Scans the prepared frame with windows sized for `scale` (apparent
+    /// size relative to training; 1 at the training distance) and returns
+    /// the best window if its score reaches the threshold.
+    pub fn scan(&mut self, scale: f32) -> Option<Detection> {
+        assert!(self.prepared, "Detector::scan before Detector::prepare");
+        let scale = if scale.is_finite() && scale > 0.0 {
+            scale
+        } else {
+            1.0
+        };
+        let p = self.model.params;
+        let (gx, gy, nf, cell) = (self.gx as i32, self.gy as i32, self.nf, self.cell as i64);
+        let side_px = (self.model.size_px * scale * p.window_factor).max(1.0);
+        let wc = ((side_px / cell as f32).round() as i32).max(1);
+        self.window_cells = wc as u32;
+        // Expected counts of a whole object at this scale.
+        let area = (self.model.size_px * scale).powi(2);
+        for ((e, w), (&f, &v)) in self
+            .expected
+            .iter_mut()
+            .zip(self.weight.iter_mut())
+            .zip(self.freq.iter().zip(&self.vote))
+        {
+            *e = f * area;
+            *w = v / area.max(1e-6);
+        }
+        let (x_lo, y_lo) = (-(wc - 1), -(wc - 1));
+        let (nx, ny) = ((gx + wc - 1) as usize, (gy + wc - 1) as usize);
+        if self.scores.len() < nx * ny {
+            self.scores.resize(nx * ny, 0.0);
+        }
+        self.heat_w = nx;
+        self.heat_h = ny;
+        self.heat_origin = (x_lo, y_lo);
+        let (w_px, h_px) = (self.width as i64, self.height as i64);
+        let win_area = (wc as i64 * cell).pow(2) as f32;
+        let row = self.gx + 1;
+        let mut best = (f32::NEG_INFINITY, CellRect::default(), false);
+        for j in 0..ny {
+            let y0 = y_lo + j as i32;
+            let (cy0, cy1) = (y0.max(0), (y0 + wc).min(gy));
+            let vis_h = ((cy1 as i64 * cell).min(h_px) - cy0 as i64 * cell).max(0);
+            for i in 0..nx {
+                let x0 = x_lo + i as i32;
+                let (cx0, cx1) = (x0.max(0), (x0 + wc).min(gx));
+                let vis_w = ((cx1 as i64 * cell).min(w_px) - cx0 as i64 * cell).max(0);
+                let v = (vis_w * vis_h) as f32 / win_area;
+                let slot = &mut self.scores[j * nx + i];
+                if v < p.min_visible || v <= 0.0 {
+                    *slot = 0.0;
+                    continue;
+                }
+                let v = v.min(1.0);
+                let at = |x: i32, y: i32| (y as usize * row + x as usize) * nf;
+                let ig = &self.integral;
+                let (a, b, c, d) = (at(cx0, cy0), at(cx1, cy0), at(cx0, cy1), at(cx1, cy1));
+                let (ia, ib, ic, id) = (
+                    &ig[a..a + nf],
+                    &ig[b..b + nf],
+                    &ig[c..c + nf],
+                    &ig[d..d + nf],
+                );
+                let mut acc = 0f32;
+                for f in 0..nf {
+                    let s = id[f] - ic[f] - ib[f] + ia[f];
+                    acc += s.min(v * self.expected[f]) * self.weight[f];
+                }
+                let score = acc / v;
+                *slot = score;
+                if score > best.0 {
+                    let truncated = x0 < 0 || y0 < 0 || x0 + wc > gx || y0 + wc > gy;
+                    best = (
+                        score,
+                        CellRect {
+                            x0: cx0 as u32,
+                            y0: cy0 as u32,
+                            x1: cx1 as u32,
+                            y1: cy1 as u32,
+                        },
+                        truncated,
+                    );
+                }
+            }
+        }
+        self.best = best.0.max(0.0);
+        if !(best.0 >= self.model.threshold) || best.1.is_empty() {
+            return None;
+        }
+        let cells = best.1;
+        let window = Rect {
+            x: cells.x0 * cell as u32,
+            y: cells.y0 * cell as u32,
+            width: cells.width() * cell as u32,
+            height: cells.height() * cell as u32,
+        }
+        .clamp_to(self.width, self.height);
+        Some(Detection {
+            window,
+            cells,
+            score: best.0,
+            threshold: self.model.threshold,
+            scale,
+            truncated: best.2,
+        })
+    }
+
+    /// Finds the object in a frame quantised with the database palette.
+    /// `scale` is its apparent size relative to training when known (from
+    /// the distance); `None` assumes the training distance (segmentation
+    /// then adapts the region to the actual size). `None` is returned when
+    /// no window reaches the model's threshold: the object is not in view.
+    pub fn detect(&mut self, image: &IndexImage, scale: Option<f32>) -> Option<Detection> {
+        self.prepare(image);
+        self.scan(scale.unwrap_or(1.0))
+    }
+}

@@ -1,0 +1,497 @@
+//! Background segmentation after Ekvall et al. (2005), as used by the paper
+//! (section 3.2): the best window of the recognition scan is grown by
+//! adjacent cells that resemble the object, then refined to a pixel mask.
+//!
+//! Resemblance is a colour likelihood adapted to the scene: around the
+//! detection, the frame's count of each palette colour is compared with what
+//! the object alone would contribute (the recognition model at the detected
+//! scale); the surplus is background. A colour's weight is the share of its
+//! pixels expected to belong to the object, `w = f / (f + b)` with `f` its
+//! frequency in the object and `b` its frequency in the surrounding
+//! background ("not object" weighs 0). A cell's likelihood is the mean
+//! weight of its pixels (from the recognition stage's per-cell counts, no
+//! pixel pass); a pixel's is the mean weight over a small box around it.
+//! The pixel mask keeps the largest connected component inside the grown
+//! region and fills its holes.
+//!
+//! Everything here is a pure algorithm on buffers; a [`Segmenter`] holds its
+//! buffers, so frames of one size cause no allocation.
+
+#![warn(missing_docs)]
+
+use acch_core::{IndexImage, Rect};
+use acch_recognition::{CellRect, Detection, Detector};
+
+/// Why a segmenter could not be used.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SegmentationError {
+    /// A frame of zero size.
+    #[error("frame size {width}x{height} is empty")]
+    EmptyFrame {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+}
+
+/// The segmented object.
+#[derive(Clone, Copy, Debug)]
+pub struct Segment<'a> {
+    /// Frame-sized mask, 255 = object, 0 elsewhere.
+    pub mask: &'a [u8],
+    /// Bounding box of the mask.
+    pub roi: Rect,
+    /// Bounding box of the grown region, in cells.
+    pub cells: CellRect,
+    /// Number of cells in the grown region.
+    pub cell_count: usize,
+    /// Object pixels in the mask.
+    pub area: u64,
+}
+
+/// Segments detections, reusing its buffers.
+#[derive(Clone, Debug)]
+pub struct Segmenter {
+    width: u32,
+    height: u32,
+    mask: Vec<u8>,
+    last_roi: Rect,
+    /// Weight per palette index, 0..=255 (the likelihood in 1/255).
+    weight: [u8; 256],
+    sums: Vec<f32>,
+    cell_score: Vec<f32>,
+    /// Per cell: 0 outside, 1 candidate (inside the search area), 2 region.
+    region: Vec<u8>,
+    queue: Vec<u32>,
+    integral: Vec<u32>,
+    stack: Vec<u32>,
+    region_box: CellRect,
+}
+
+impl Segmenter {
+    /// A segmenter for `width` x `height` frames.
+    pub fn new(width: u32, height: u32) -> Result<Self, SegmentationError> {
+        if width == 0 || height == 0 {
+            return Err(SegmentationError::EmptyFrame { width, height });
+        }
+        let mut s = Segmenter {
+            width: 0,
+            height: 0,
+            mask: Vec::new(),
+            last_roi: Rect::default(),
+            weight: [0; 256],
+            sums: Vec::new(),
+            cell_score: Vec::new(),
+            region: Vec::new(),
+            queue: Vec::new(),
+            integral: Vec::new(),
+            stack: Vec::new(),
+            region_box: CellRect::default(),
+        };
+        s.resize(width, height);
+        Ok(s)
+    }
+
+    fn resize(&mut self, width: u32, height: u32) {
+        let n = width as usize * height as usize;
+        self.width = width;
+        self.height = height;
+        self.mask = vec![0; n];
+        self.last_roi = Rect::default();
+        self.integral = vec![0; (width as usize + 1) * (height as usize + 1)];
+        self.stack = Vec::with_capacity(n);
+    }
+
+    /// The colour weights of the last segmentation, per palette index
+    /// (0..=255 for 0..=1).
+    pub fn colour_weights(&self) -> &[u8; 256] {
+        &self.weight
+    }
+
+    /// Per-cell object likelihood of the last segmentation (cell grid of the
+    /// detector, row-major; 0 outside the search area).
+    pub fn cell_scores(&self) -> &[f32] {
+        &self.cell_score
+    }
+
+    /// Per-cell region of the last segmentation (cell grid of the detector,
+    /// row-major): 2 = grown region, 1 = searched, 0 = not searched.
+    pub fn region(&self) -> &[u8] {
+        &self.region
+    }
+
+    /// Grows `detection` (from `detector`'s last frame, `image`) into a pixel
+    /// mask. Returns `None` when no cell of the window resembles the object.
+    pub fn segment(
+        &mut self,
+        image: &IndexImage,
+        detector: &Detector,
+        detection: &Detection,
+    ) -> Option<Segment<'_>> {
+        if image.width != self.width || image.height != self.height {
+            self.resize(image.width, image.height);
+        }
+        // Clear the last mask.
+        let w = self.width as usize;
+        let r = self.last_roi;
+        for y in r.y as usize..(r.y + r.height) as usize {
+            self.mask[y * w + r.x as usize..y * w + (r.x + r.width) as usize].fill(0);
+        }
+        self.last_roi = Rect::default();
+
+        let model = detector.model();
+        let p = model.params;
+        let (gx, gy) = detector.grid();
+        let cell = detector.cell_px() as usize;
+        let (c, _k, nf) = detector.layout();
+        let win = detection.cells;
+        let wc = detector.window_cells().max(win.width()).max(win.height());
+
+        // Colour weights from the context: the window plus one window side
+        // around it.
+        let ctx = expand(win, wc, gx, gy);
+        if self.sums.len() != nf {
+            self.sums.resize(nf, 0.0);
+        }
+        detector.sum_cells(ctx, &mut self.sums);
+        let ctx_px = ((ctx.x1 as usize * cell).min(w) - ctx.x0 as usize * cell) as f32
+            * ((ctx.y1 as usize * cell).min(self.height as usize) - ctx.y0 as usize * cell) as f32;
+        let area = (model.size_px * detection.scale).powi(2);
+        let bg_px = (ctx_px - area).max(ctx_px * 0.25).max(1.0);
+        self.weight = [0; 256];
+        let freq = detector.model_freq();
+        for k in 0..c {
+            let f = freq[k];
+            if f <= 0.0 {
+                continue;
+            }
+            let b = (self.sums[k] - f * area).max(0.0) / bg_px;
+            self.weight[k] = (255.0 * f / (f + b)).round() as u8;
+        }
+
+        // Cell likelihoods over the search area.
+        let grow = (p.max_growth * wc as f32).ceil() as u32;
+        let search = expand(win, grow, gx, gy);
+        if self.cell_score.len() != gx * gy {
+            self.cell_score = vec![0.0; gx * gy];
+            self.region = vec![0; gx * gy];
+            self.queue = Vec::with_capacity(gx * gy);
+        } else {
+            self.cell_score.fill(0.0);
+            self.region.fill(0);
+        }
+        let mut cw = [0f32; 256];
+        for k in 0..c {
+            cw[k] = self.weight[k] as f32 / 255.0;
+        }
+        for cy in search.y0..search.y1 {
+            let ph = ((cy as usize + 1) * cell).min(self.height as usize) - cy as usize * cell;
+            for cx in search.x0..search.x1 {
+                let pw = ((cx as usize + 1) * cell).min(w) - cx as usize * cell;
+                let counts = detector.cell_counts(cx as usize, cy as usize);
+                let s: f32 = counts[..c]
+                    .iter()
+                    .zip(&cw[..c])
+                    .map(|(&n, &wt)| n as f32 * wt)
+                    .sum();
+                let i = cy as usize * gx + cx as usize;
+                self.cell_score[i] = s / (pw * ph) as f32;
+                self.region[i] = 1;
+            }
+        }
+
+        // Region growing from the window's resembling cells.
+        self.queue.clear();
+        for cy in win.y0..win.y1 {
+            for cx in win.x0..win.x1 {
+                let i = cy as usize * gx + cx as usize;
+                if self.cell_score[i] >= p.cell_threshold {
+                    self.region[i] = 2;
+                    self.queue.push(i as u32);
+                }
+            }
+        }
+        let mut head = 0;
+        let mut rb = CellRect {
+            x0: u32::MAX,
+            y0: u32::MAX,
+            x1: 0,
+            y1: 0,
+        };
+        while head < self.queue.len() {
+            let i = self.queue[head] as usize;
+            head += 1;
+            let (cx, cy) = ((i % gx) as u32, (i / gx) as u32);
+            rb.x0 = rb.x0.min(cx);
+            rb.y0 = rb.y0.min(cy);
+            rb.x1 = rb.x1.max(cx + 1);
+            rb.y1 = rb.y1.max(cy + 1);
+            let mut visit = |j: usize| {
+                if self.region[j] == 1 && self.cell_score[j] >= p.cell_threshold {
+                    self.region[j] = 2;
+                    self.queue.push(j as u32);
+                }
+            };
+            if cx > 0 {
+                visit(i - 1);
+            }
+            if (cx as usize) + 1 < gx {
+                visit(i + 1);
+            }
+            if cy > 0 {
+                visit(i - gx);
+            }
+            if (cy as usize) + 1 < gy {
+                visit(i + gx);
+            }
+        }
+        let cell_count = self.queue.len();
+        if cell_count == 0 {
+            return None;
+        }
+        self.region_box = rb;
+
+        // Pixel stage on the region's box plus one cell.
+        let roi_c = expand(rb, 1, gx, gy);
+        let x0 = roi_c.x0 as usize * cell;
+        let y0 = roi_c.y0 as usize * cell;
+        let x1 = (roi_c.x1 as usize * cell).min(w);
+        let y1 = (roi_c.y1 as usize * cell).min(self.height as usize);
+        let (rw, rh) = (x1 - x0, y1 - y0);
+        // Integral of the weights over the ROI.
+        let iw = rw + 1;
+        self.integral[..iw].fill(0);
+        for y in 0..rh {
+            let src = &image.data[(y0 + y) * w + x0..(y0 + y) * w + x1];
+            let mut run = 0u32;
+            let (above, here) = self.integral.split_at_mut((y + 1) * iw);
+            let above = &above[y * iw..];
+            here[0] = 0;
+            for x in 0..rw {
+                run += self.weight[src[x] as usize] as u32;
+                here[x + 1] = above[x + 1] + run;
+            }
+        }
+        // Smoothed likelihood, thresholded, inside the region dilated by
+        // one cell.
+        let rad = p.smooth_radius as usize;
+        let thr = p.pixel_threshold * 255.0;
+        for y in 0..rh {
+            let ya = y.saturating_sub(rad);
+            let yb = (y + rad + 1).min(rh);
+            let cy = (y0 + y) / cell;
+            for x in 0..rw {
+                let cx = (x0 + x) / cell;
+                if !near_region(&self.region, gx, gy, cx, cy) {
+                    continue;
+                }
+                let xa = x.saturating_sub(rad);
+                let xb = (x + rad + 1).min(rw);
+                let s = self.integral[yb * iw + xb] + self.integral[ya * iw + xa]
+                    - self.integral[ya * iw + xb]
+                    - self.integral[yb * iw + xa];
+                let n = ((yb - ya) * (xb - xa)) as f32;
+                if s as f32 >= thr * n {
+                    self.mask[(y0 + y) * w + x0 + x] = 1;
+                }
+            }
+        }
+        let roi = Rect {
+            x: x0 as u32,
+            y: y0 as u32,
+            width: rw as u32,
+            height: rh as u32,
+        };
+        self.last_roi = roi;
+        let area = self.keep_largest(roi);
+        if area == 0 {
+            return None;
+        }
+        let area = self.fill_holes(roi, area);
+        let bbox = bbox(&self.mask, w, roi);
+        Some(Segment {
+            mask: &self.mask,
+            roi: bbox,
+            cells: rb,
+            cell_count,
+            area,
+        })
+    }
+
+    /// Keeps the largest 4-connected component of mask value 1 inside `roi`
+    /// and marks it 255; everything else becomes 0. Returns its area.
+    fn keep_largest(&mut self, roi: Rect) -> u64 {
+        let w = self.width as usize;
+        let (x0, y0, x1, y1) = (
+            roi.x as usize,
+            roi.y as usize,
+            (roi.x + roi.width) as usize,
+            (roi.y + roi.height) as usize,
+        );
+        // Label components 2, 3, ... (wrapping past 254 is avoided by
+        // relabelling smaller components to 0 as soon as a larger one wins).
+        let mut best = (0u64, 0usize);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let i = y * w + x;
+                if self.mask[i] != 1 {
+                    continue;
+                }
+                let size = flood(&mut self.mask, &mut self.stack, w, roi, i, 1, 2);
+                if size > best.0 {
+                    if best.0 > 0 {
+                        flood(&mut self.mask, &mut self.stack, w, roi, best.1, 3, 0);
+                    }
+                    // Mark the new best as 3 so that later floods skip it.
+                    flood(&mut self.mask, &mut self.stack, w, roi, i, 2, 3);
+                    best = (size, i);
+                } else {
+                    flood(&mut self.mask, &mut self.stack, w, roi, i, 2, 0);
+                }
+            }
+        }
+        for y in y0..y1 {
+            for m in &mut self.mask[y * w + x0..y * w + x1] {
+                *m = if *m == 3 { 255 } else { 0 };
+            }
+        }
+        best.0
+    }
+
+    /// Fills the holes of the mask inside `roi`: background pixels not
+    /// 4-connected to the ROI border become object. Returns the new area.
+    fn fill_holes(&mut self, roi: Rect, area: u64) -> u64 {
+        let w = self.width as usize;
+        let (x0, y0, x1, y1) = (
+            roi.x as usize,
+            roi.y as usize,
+            (roi.x + roi.width) as usize,
+            (roi.y + roi.height) as usize,
+        );
+        // 0 = background; flood the border's background to 1.
+        for y in y0..y1 {
+            for x in [x0, x1 - 1] {
+                let i = y * w + x;
+                if self.mask[i] == 0 {
+                    flood(&mut self.mask, &mut self.stack, w, roi, i, 0, 1);
+                }
+            }
+        }
+        for x in x0..x1 {
+            for y in [y0, y1 - 1] {
+                let i = y * w + x;
+                if self.mask[i] == 0 {
+                    flood(&mut self.mask, &mut self.stack, w, roi, i, 0, 1);
+                }
+            }
+        }
+        let mut filled = 0;
+        for y in y0..y1 {
+            for m in &mut self.mask[y * w + x0..y * w + x1] {
+                match *m {
+                    0 => {
+                        *m = 255;
+                        filled += 1;
+                    }
+                    1 => *m = 0,
+                    _ => {}
+                }
+            }
+        }
+        area + filled
+    }
+}
+
+/// `r` grown by `by` cells on each side, cut to the grid.
+fn expand(r: CellRect, by: u32, gx: usize, gy: usize) -> CellRect {
+    CellRect {
+        x0: r.x0.saturating_sub(by),
+        y0: r.y0.saturating_sub(by),
+        x1: (r.x1 + by).min(gx as u32),
+        y1: (r.y1 + by).min(gy as u32),
+    }
+}
+
+/// Whether cell (cx, cy) or one of its 8 neighbours is in the region.
+#[inline]
+fn near_region(region: &[u8], gx: usize, gy: usize, cx: usize, cy: usize) -> bool {
+    let (xa, xb) = (cx.saturating_sub(1), (cx + 1).min(gx - 1));
+    let (ya, yb) = (cy.saturating_sub(1), (cy + 1).min(gy - 1));
+    (ya..=yb).any(|y| region[y * gx + xa..=y * gx + xb].contains(&2))
+}
+
+/// 4-connected flood fill inside `roi` from pixel `start`, turning `from`
+/// into `to`; returns the number of pixels changed.
+fn flood(
+    mask: &mut [u8],
+    stack: &mut Vec<u32>,
+    w: usize,
+    roi: Rect,
+    start: usize,
+    from: u8,
+    to: u8,
+) -> u64 {
+    debug_assert_ne!(from, to);
+    if mask[start] != from {
+        return 0;
+    }
+    let (x0, y0, x1, y1) = (
+        roi.x as usize,
+        roi.y as usize,
+        (roi.x + roi.width) as usize,
+        (roi.y + roi.height) as usize,
+    );
+    stack.clear();
+    mask[start] = to;
+    stack.push(start as u32);
+    let mut n = 0;
+    while let Some(i) = stack.pop() {
+        let i = i as usize;
+        n += 1;
+        let (x, y) = (i % w, i / w);
+        let mut push = |j: usize| {
+            if mask[j] == from {
+                mask[j] = to;
+                stack.push(j as u32);
+            }
+        };
+        if x > x0 {
+            push(i - 1);
+        }
+        if x + 1 < x1 {
+            push(i + 1);
+        }
+        if y > y0 {
+            push(i - w);
+        }
+        if y + 1 < y1 {
+            push(i + w);
+        }
+    }
+    n
+}
+
+/// Bounding box of the non-zero mask pixels inside `roi`.
+fn bbox(mask: &[u8], w: usize, roi: Rect) -> Rect {
+    let (mut bx0, mut by0, mut bx1, mut by1) = (usize::MAX, usize::MAX, 0, 0);
+    for y in roi.y as usize..(roi.y + roi.height) as usize {
+        let row = &mask[y * w + roi.x as usize..y * w + (roi.x + roi.width) as usize];
+        if let Some(first) = row.iter().position(|&m| m != 0) {
+            let last = row.len() - 1 - row.iter().rev().position(|&m| m != 0).unwrap_or(0);
+            bx0 = bx0.min(roi.x as usize + first);
+            bx1 = bx1.max(roi.x as usize + last + 1);
+            by0 = by0.min(y);
+            by1 = y + 1;
+        }
+    }
+    if bx0 == usize::MAX {
+        return Rect::default();
+    }
+    Rect {
+        x: bx0 as u32,
+        y: by0 as u32,
+        width: (bx1 - bx0) as u32,
+        height: (by1 - by0) as u32,
+    }
+}
