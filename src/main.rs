@@ -1,6 +1,8 @@
 //! `acch`: train view databases, estimate 2-DOF poses, evaluate, and run the pipeline.
 
 mod cmd;
+mod model;
+mod pipeline;
 mod plot;
 
 use clap::{Parser, Subcommand};
@@ -16,6 +18,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Stream frames through every stage (default: built-in fruitbox, simulated camera).
+    Run(cmd::run::RunArgs),
     /// Render views of an object with ground truth (images, masks, labels.csv).
     Render(cmd::render::RenderArgs),
     /// Train a view database from a rendered object or labelled images.
@@ -38,6 +42,7 @@ fn main() -> std::process::ExitCode {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Run(args) => cmd::run::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Train(args) => cmd::train::run(args),
         Command::Eval(args) => cmd::eval::run(args),

@@ -196,7 +196,10 @@ fn bad_inputs_fail_with_clear_messages() {
         (&["--object", "banana"], "banana"),
         (&["--mesh", "/no/such/mesh.obj"], "/no/such/mesh.obj"),
         (&["--object", "can", "--views", "grid:45,100:10"], "100"),
-        (&["--object", "can", "--distance", "-1"], "distance -1 must be"),
+        (
+            &["--object", "can", "--distance", "-1"],
+            "distance -1 must be",
+        ),
         (&["--object", "can", "--noise", "-3"], "--noise -3 must be"),
         (&[], "--object"),
     ];

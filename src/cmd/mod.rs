@@ -5,4 +5,5 @@ pub mod estimate;
 pub mod eval;
 pub mod features;
 pub mod render;
+pub mod run;
 pub mod train;

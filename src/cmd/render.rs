@@ -77,15 +77,30 @@ pub struct RenderArgs {
 
     /// Sensor noise: standard deviation of additive per-channel noise in grey
     /// levels (0-255). 0 = none.
-    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     noise: f32,
 
     /// Gaussian blur: standard deviation in pixels. 0 = none.
-    #[arg(long, value_name = "SIGMA", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     blur: f32,
 
     /// Brightness factor applied to every pixel (exposure change). 1 = unchanged.
-    #[arg(long, value_name = "B", default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "B",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     brightness: f32,
 
     /// Image width in pixels.

@@ -2,9 +2,10 @@
 //! folder of labelled images.
 
 use super::common::{self, HistogramArgs, ObjectArgs};
+use crate::model;
 use acch_capture::{Background, DEFAULT_DISTANCE, ViewSpec, labels};
 use acch_core::ViewDatabase;
-use acch_pose::train::{LabelledView, TrainConfig, build_database};
+use acch_pose::train::{LabelledView, TrainConfig};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -32,9 +33,35 @@ pub struct TrainArgs {
     seed: u64,
     #[command(flatten)]
     histogram: HistogramArgs,
+    /// Confidence network: random-pose scenes rendered per background (plain,
+    /// A, B, C, clutter, clutter-similar) to train it on; 0 leaves it out.
+    #[arg(long, default_value_t = 80)]
+    confidence_scenes: usize,
+    /// Confidence network input: the four response features, or the whole
+    /// response.
+    #[arg(long, value_enum, default_value = "features")]
+    confidence_input: ConfidenceInput,
     /// Output database file.
     #[arg(long, value_name = "FILE.acchdb")]
     out: PathBuf,
+}
+
+/// What the confidence network reads.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ConfidenceInput {
+    /// R_phi, D_phi, R_theta, D_theta (paper, section 4).
+    Features,
+    /// The whole match-value response, normalised by its maximum.
+    Response,
+}
+
+impl From<ConfidenceInput> for acch_confidence::Kind {
+    fn from(c: ConfidenceInput) -> Self {
+        match c {
+            ConfidenceInput::Features => acch_confidence::Kind::Features,
+            ConfidenceInput::Response => acch_confidence::Kind::Response,
+        }
+    }
 }
 
 /// Runs `acch train`.
@@ -45,14 +72,14 @@ pub fn run(args: TrainArgs) -> Result<()> {
         Some(dir) => train_from_folder(dir, &config)?,
         None => {
             let object = args.object.load()?;
-            let views = args.views.views(args.distance, args.seed);
-            let renderer = common::renderer(object.clone(), args.background.clone(), args.seed);
-            let renders = common::render_views(&renderer, &views, args.seed, "rendering");
-            let labelled: Vec<LabelledView> = renders
-                .iter()
-                .map(|r| common::labelled(r, args.distance))
-                .collect();
-            build_database(object.name(), args.distance as f32, &labelled, &config)?
+            let training = model::RenderedTraining {
+                views: args.views.clone(),
+                background: args.background.clone(),
+                distance: args.distance,
+                seed: args.seed,
+            };
+            let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
+            model::train_object(&object, &config, &training, confidence)?
         }
     };
     db.save(&args.out)?;
@@ -135,10 +162,5 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
-    Ok(build_database(
-        &name,
-        train_distance as f32,
-        &labelled,
-        config,
-    )?)
+    model::train_views(&name, train_distance as f32, &labelled, config)
 }

@@ -333,7 +333,7 @@ fn distractor(
 /// horizontal distance d it is d above the centre, higher than any
 /// distractor top closer than d.
 pub(crate) fn clutter_layout(target: &Object, similar: bool, seed: u64) -> Vec<Placed> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x636c_7574_7465_72);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0063_6c75_7474_6572);
     let palette: Vec<[u8; 3]> = if similar {
         let base = target.dominant_colors(6);
         let base = if base.is_empty() {

@@ -84,34 +84,42 @@ fn blur(rgb: &mut [u8], w: usize, h: usize, sigma: f32, tmp: &mut Vec<f32>) {
         *k /= sum;
     }
     let kernel = &kernel[..2 * radius + 1];
+    let stride = w * 3;
+    let padded = (w + 2 * radius) * 3;
     tmp.clear();
-    tmp.resize(w * h * 3, 0.0);
-    let r = radius as isize;
-    // Horizontal pass into tmp.
+    tmp.resize(h * stride + padded + stride, 0.0);
+    let (horiz, rest) = tmp.split_at_mut(h * stride);
+    let (pad, acc) = rest.split_at_mut(padded);
+    // Horizontal pass into `horiz`: copy the row with clamped borders into
+    // `pad`, then accumulate one tap at a time over the whole row (these
+    // loops vectorise).
     for y in 0..h {
-        let src = &rgb[y * w * 3..(y + 1) * w * 3];
-        let dst = &mut tmp[y * w * 3..(y + 1) * w * 3];
-        for x in 0..w {
-            let mut acc = [0f32; 3];
-            for (i, &k) in kernel.iter().enumerate() {
-                let xx = (x as isize + i as isize - r).clamp(0, w as isize - 1) as usize;
-                for c in 0..3 {
-                    acc[c] += k * src[xx * 3 + c] as f32;
-                }
+        let src = &rgb[y * stride..(y + 1) * stride];
+        for (i, p) in pad.chunks_exact_mut(3).enumerate() {
+            let x = i.saturating_sub(radius).min(w - 1);
+            for c in 0..3 {
+                p[c] = src[x * 3 + c] as f32;
             }
-            dst[x * 3..x * 3 + 3].copy_from_slice(&acc);
+        }
+        let dst = &mut horiz[y * stride..(y + 1) * stride];
+        dst.fill(0.0);
+        for (j, &k) in kernel.iter().enumerate() {
+            for (d, &s) in dst.iter_mut().zip(&pad[j * 3..j * 3 + stride]) {
+                *d += k * s;
+            }
         }
     }
-    // Vertical pass back into rgb.
-    let stride = w * 3;
+    // Vertical pass back into rgb, a whole row per tap.
     for y in 0..h {
-        for i in 0..stride {
-            let mut acc = 0.0;
-            for (j, &k) in kernel.iter().enumerate() {
-                let yy = (y as isize + j as isize - r).clamp(0, h as isize - 1) as usize;
-                acc += k * tmp[yy * stride + i];
+        acc.fill(0.0);
+        for (j, &k) in kernel.iter().enumerate() {
+            let yy = (y + j).saturating_sub(radius).min(h - 1);
+            for (a, &s) in acc.iter_mut().zip(&horiz[yy * stride..(yy + 1) * stride]) {
+                *a += k * s;
             }
-            rgb[y * stride + i] = (acc + 0.5).clamp(0.0, 255.0) as u8;
+        }
+        for (o, &a) in rgb[y * stride..(y + 1) * stride].iter_mut().zip(acc.iter()) {
+            *o = (a + 0.5).clamp(0.0, 255.0) as u8;
         }
     }
 }

@@ -194,8 +194,8 @@ impl Object {
                 let e = bins.entry(key).or_insert((0.0, [0.0; 3]));
                 let wgt = area / bary.len() as f64;
                 e.0 += wgt;
-                for i in 0..3 {
-                    e.1[i] += wgt * c[i] as f64;
+                for (acc, &ci) in e.1.iter_mut().zip(&c) {
+                    *acc += wgt * ci as f64;
                 }
             }
         }
@@ -724,16 +724,16 @@ fn load_obj_impl(path: &Path, up: UpAxis) -> Result<Object, CaptureError> {
                 n: Vec3::ZERO,
                 uv: Vec2::ZERO,
             }; 3];
-            for j in 0..3 {
+            for (j, vj) in v.iter_mut().enumerate() {
                 let k = 3 * f + j;
-                v[j].p = pos(mesh.indices[k])?;
-                v[j].uv = uv_at(
+                vj.p = pos(mesh.indices[k])?;
+                vj.uv = uv_at(
                     *tidx
                         .get(k)
                         .ok_or_else(|| bad("texture coordinate indices missing".into()))?,
                 )?;
                 if has_normals {
-                    v[j].n = nrm_at(
+                    vj.n = nrm_at(
                         *nidx
                             .get(k)
                             .ok_or_else(|| bad("normal indices missing".into()))?,

@@ -81,7 +81,7 @@ pub(crate) fn draw_object(
     for (tri, &ti) in obj.tris.iter().zip(&obj.tri_tex) {
         let tex = &obj.textures[ti as usize];
         let pc = tri.map(|v| cam_from_obj.transform_point3(v.p.as_dvec3()));
-        if pc.iter().all(|p| !(p.z >= NEAR)) {
+        if pc.iter().all(|p| p.z.is_nan() || p.z < NEAR) {
             continue;
         }
         // Light both sides: meshes may have inconsistent winding or be open,
@@ -194,7 +194,7 @@ impl Edge {
 fn raster(frame: &mut Frame, v: &[ScreenVertex; 3], level: &Level, repeat: bool, mask_value: u8) {
     let (a, mut b, mut c) = (v[0], v[1], v[2]);
     let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-    if !(area.abs() > 1e-9) {
+    if area.is_nan() || area.abs() <= 1e-9 {
         return; // degenerate or NaN
     }
     if area < 0.0 {
@@ -228,7 +228,7 @@ fn raster(frame: &mut Frame, v: &[ScreenVertex; 3], level: &Level, repeat: bool,
                 }
             }
         }
-        if !(lo <= hi) {
+        if lo.is_nan() || hi.is_nan() || lo > hi {
             continue;
         }
         let (xs, xe) = (lo as usize, hi as usize);
@@ -280,6 +280,8 @@ pub(crate) fn draw_table(
     table_z: f64,
     wall: [u8; 3],
 ) {
+    /// Pixels per run sharing one mip level (the footprint varies slowly).
+    const SPAN: usize = 16;
     let shade = AMBIENT + DIFFUSE * light_world().z.max(0.0) as f32;
     let (right, down, fwd) = (
         world_from_cam.x_axis,
@@ -289,33 +291,66 @@ pub(crate) fn draw_table(
     let tpu = tex.size().0 as f64 / tile;
     let inv_tile = 1.0 / tile;
     let step = right / k.fx;
+    // Rays hit the plane at t = num / d.z with d.z < 0 (camera above it).
+    let num = table_z - centre.z;
     for y in 0..frame.h {
         let dy = (y as f64 - k.cy) / k.fy;
-        let row_dir = fwd + down * dy - right * (k.cx / k.fx);
+        let d0 = fwd + down * dy - right * (k.cx / k.fx);
+        // Along the row the ray is d0 + step x, so the hit point's
+        // coordinates are ratios of linear functions of x: one division
+        // per pixel.
+        let (ax, bx) = (
+            (centre.x * d0.z + num * d0.x) * inv_tile,
+            (centre.x * step.z + num * step.x) * inv_tile,
+        );
+        let (ay, by) = (
+            (centre.y * d0.z + num * d0.y) * inv_tile,
+            (centre.y * step.z + num * step.y) * inv_tile,
+        );
+        // |d|^2 as a quadratic in x, for the far cut-off.
+        let (q0, q1, q2) = (
+            d0.length_squared(),
+            2.0 * d0.dot(step),
+            step.length_squared(),
+        );
         let row = &mut frame.rgb[y * frame.w * 3..(y + 1) * frame.w * 3];
-        for (x, px) in row.chunks_exact_mut(3).enumerate() {
-            let d = row_dir + step * x as f64;
-            let mut col = wall;
-            if d.z < -1e-9 {
-                let t = (table_z - centre.z) / d.z;
-                let len = d.length();
-                let range = t * len;
-                if t > 0.0 && range < FAR {
-                    let hx = centre.x + t * d.x;
-                    let hy = centre.y + t * d.y;
-                    // Footprint in texels: pixel angle x range, stretched by
-                    // the slant (geometric mean of the two axes).
-                    let fp = (range / k.fx * (len / -d.z).sqrt() * tpu) as f32;
-                    let lod = if fp > 1.0 { fp.log2() } else { 0.0 };
-                    let s = tex.level_for_lod(lod).sample(
-                        (hx * inv_tile) as f32,
-                        (hy * inv_tile) as f32,
+        for (s, span) in row.chunks_mut(SPAN * 3).enumerate() {
+            let x0 = s * SPAN;
+            // Mip level from the footprint (in texels) at the span's middle:
+            // pixel angle x range, stretched by the slant (geometric mean).
+            let xm = (x0 + span.len() / 6) as f64;
+            let dm = d0 + step * xm;
+            let level = if num < 0.0 && dm.z < -1e-9 {
+                let len = dm.length();
+                let fp = (num / dm.z * len / k.fx * (len / -dm.z).sqrt() * tpu) as f32;
+                // floor(log2(fp)) from the float's exponent field.
+                if fp >= 1.0 {
+                    ((fp.to_bits() >> 23) & 0xff) as usize - 127
+                } else {
+                    0
+                }
+            } else {
+                usize::MAX // horizon: the coarsest level
+            };
+            let lvl = tex.level(level);
+            for (i, px) in span.chunks_exact_mut(3).enumerate() {
+                let x = (x0 + i) as f64;
+                let dz = d0.z + step.z * x;
+                let inv = 1.0 / dz;
+                let t = num * inv;
+                let col = if dz < -1e-9 && num < 0.0 && t * t * (q0 + x * (q1 + x * q2)) < FAR * FAR
+                {
+                    let s = lvl.sample(
+                        ((ax + bx * x) * inv) as f32,
+                        ((ay + by * x) * inv) as f32,
                         true,
                     );
-                    col = s.map(|v| (v * shade + 0.5).min(255.0) as u8);
-                }
+                    s.map(|v| (v * shade + 0.5).min(255.0) as u8)
+                } else {
+                    wall
+                };
+                px.copy_from_slice(&col);
             }
-            px.copy_from_slice(&col);
         }
     }
 }

@@ -80,7 +80,7 @@ fn labels_round_trip() {
         },
         LabelRow {
             file: "real, odd \"name\".png".into(),
-            theta_deg: 67.123456789012345,
+            theta_deg: 67.123_456_789_012_34 + 1e-13,
             phi_deg: 359.99999999999994,
             distance: 0.1 + 0.2,
             bbox: None,

@@ -174,14 +174,15 @@ fn top_view_phi_plus_90_rotates_the_mask_by_90_degrees() {
     let diff = |clockwise: bool| {
         let (mut sum, mut n) = (0.0, 0.0);
         for (x, y, m) in b.mask.enumerate_pixels() {
-            if let Some((sx, sy)) = rotated_source(x, y, clockwise) {
-                if m[0] != 0 && a.mask.get_pixel(sx, sy)[0] != 0 {
-                    let (p, q) = (b.image.get_pixel(x, y).0, a.image.get_pixel(sx, sy).0);
-                    sum += (0..3)
-                        .map(|i| (p[i] as f64 - q[i] as f64).abs())
-                        .sum::<f64>();
-                    n += 3.0;
-                }
+            let Some((sx, sy)) = rotated_source(x, y, clockwise) else {
+                continue;
+            };
+            if m[0] != 0 && a.mask.get_pixel(sx, sy)[0] != 0 {
+                let (p, q) = (b.image.get_pixel(x, y).0, a.image.get_pixel(sx, sy).0);
+                sum += (0..3)
+                    .map(|i| (p[i] as f64 - q[i] as f64).abs())
+                    .sum::<f64>();
+                n += 3.0;
             }
         }
         sum / n

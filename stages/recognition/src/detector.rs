@@ -1,6 +1,6 @@
 //! The per-frame window scan.
 
-use acch_core::{IndexImage, Rect};
+use acch_core::{IndexImage, NOT_OBJECT, Rect};
 
 use crate::model::{RecognitionError, RecognitionModel};
 
@@ -81,12 +81,14 @@ pub struct Detector {
     cell: usize,
     gx: usize,
     gy: usize,
-    /// Colour features 0..C, NOT_OBJECT at C, pairs at C+1.., a discard slot
-    /// last; padded.
+    /// Features per cell: colours 0..C, NOT_OBJECT at C, pairs at C+1..,
+    /// padded with zeros to a multiple of 8.
     nf: usize,
-    discard: usize,
     colour_feature: [u16; 256],
-    pair_lut: Vec<u16>,
+    /// Palette index -> row/column of `pair_lut` (C for "not object").
+    remap: [u8; 256],
+    /// (C+1) x (C+1): pair number + 1 for the K pairs, 0 for others.
+    pair_lut: Vec<u8>,
     /// Model counts per object pixel, per feature.
     freq: Vec<f32>,
     /// Vote weight per feature (part weight / part total), per object pixel.
@@ -114,17 +116,21 @@ impl Detector {
         }
         let c = model.colours();
         let k = model.pairs.len();
-        let discard = c + 1 + k;
-        let nf = (discard + 1).next_multiple_of(8);
+        let nf = (c + 1 + k).next_multiple_of(8);
         let mut colour_feature = [c as u16; 256];
         for (i, f) in colour_feature.iter_mut().enumerate().take(c) {
             *f = i as u16;
         }
-        let mut pair_lut = vec![discard as u16; 256 * 256];
+        let mut remap = [c as u8; 256];
+        for (i, r) in remap.iter_mut().enumerate().take(c) {
+            *r = i as u8;
+        }
+        let side = c + 1;
+        let mut pair_lut = vec![0u8; side * side];
         for (p, &(a, b, _)) in model.pairs.iter().enumerate() {
-            let f = (c + 1 + p) as u16;
-            pair_lut[(a as usize) << 8 | b as usize] = f;
-            pair_lut[(b as usize) << 8 | a as usize] = f;
+            let f = (p + 1) as u8;
+            pair_lut[a as usize * side + b as usize] = f;
+            pair_lut[b as usize * side + a as usize] = f;
         }
         let mut freq = vec![0f32; nf];
         freq[..c].copy_from_slice(&model.colour_freq);
@@ -153,8 +159,8 @@ impl Detector {
             gx: 0,
             gy: 0,
             nf,
-            discard,
             colour_feature,
+            remap,
             pair_lut,
             freq,
             vote,
@@ -278,50 +284,60 @@ impl Detector {
         let data = &image.data[..w * h];
         self.cell_counts.fill(0);
         let cf = &self.colour_feature;
+        let remap = &self.remap;
         let lut = &self.pair_lut[..];
-        let discard = self.discard;
+        let side = self.model.colours() + 1;
+        // Pair number p + 1 is stored: feature C + 1 + p.
+        let pair_base = side - 1;
+        let not = self.model.colours();
+        // Pixels whose colour the object does not own are skipped: they form
+        // no object pair, and their count per cell is derived afterwards
+        // (incrementing one shared counter per background pixel would
+        // serialise the loop on that counter).
         for cy in 0..gy {
             let y_lo = cy * cell;
             let y_hi = (y_lo + cell).min(h);
             let cells = &mut self.cell_counts[cy * gx * nf..(cy + 1) * gx * nf];
             for y in y_lo..y_hi {
                 let row = &data[y * w..(y + 1) * w];
-                let down = (y + d < h).then(|| &data[(y + d) * w..(y + d + 1) * w]);
+                // The last rows have no pair below: an empty slice.
+                let down: &[u8] = if y + d < h { &data[(y + d) * w..(y + d + 1) * w] } else { &[] };
                 for (cx, counts) in cells.chunks_exact_mut(nf).enumerate() {
                     let x_lo = cx * cell;
                     let x_hi = (x_lo + cell).min(w);
                     let counts: &mut [u16] = &mut counts[..nf];
-                    let x_pair = x_hi.min(w.saturating_sub(d)).max(x_lo);
-                    match down {
-                        Some(down) => {
-                            for x in x_lo..x_pair {
-                                let a = row[x] as usize;
-                                counts[cf[a] as usize] += 1;
-                                counts[lut[a << 8 | row[x + d] as usize] as usize] += 1;
-                                counts[lut[a << 8 | down[x] as usize] as usize] += 1;
-                            }
-                            for x in x_pair..x_hi {
-                                let a = row[x] as usize;
-                                counts[cf[a] as usize] += 1;
-                                counts[lut[a << 8 | down[x] as usize] as usize] += 1;
+                    for x in x_lo..x_hi {
+                        let a = row[x];
+                        if a == NOT_OBJECT {
+                            continue;
+                        }
+                        counts[cf[a as usize] as usize] += 1;
+                        let lrow = &lut[remap[a as usize] as usize * side..][..side];
+                        if let Some(&b) = row.get(x + d) {
+                            let f = lrow[remap[b as usize] as usize];
+                            if f != 0 {
+                                counts[pair_base + f as usize] += 1;
                             }
                         }
-                        None => {
-                            for x in x_lo..x_pair {
-                                let a = row[x] as usize;
-                                counts[cf[a] as usize] += 1;
-                                counts[lut[a << 8 | row[x + d] as usize] as usize] += 1;
-                            }
-                            for x in x_pair..x_hi {
-                                counts[cf[row[x] as usize] as usize] += 1;
+                        if let Some(&b) = down.get(x) {
+                            let f = lrow[remap[b as usize] as usize];
+                            if f != 0 {
+                                counts[pair_base + f as usize] += 1;
                             }
                         }
                     }
                 }
             }
+            // "Not object" count per cell: the cell's pixels minus the rest.
+            let ph = y_hi - y_lo;
+            for (cx, counts) in cells.chunks_exact_mut(nf).enumerate() {
+                let pw = ((cx + 1) * cell).min(w) - cx * cell;
+                let owned: u32 = counts[..not].iter().map(|&n| n as u32).sum();
+                counts[not] = ((pw * ph) as u32 - owned) as u16;
+            }
         }
         // Integral over the cell grid: I(x, y) = sum of cells left of x and
-        // above y. The discard slot is cleared so that it never votes.
+        // above y.
         let row = gx + 1;
         self.integral[..row * nf].fill(0.0);
         let mut run = std::mem::take(&mut self.run);
@@ -334,7 +350,6 @@ impl Detector {
                 for (r, &c) in run.iter_mut().zip(counts) {
                     *r += c as f32;
                 }
-                run[discard] = 0.0;
                 let (above, here) = self.integral.split_at_mut(base);
                 let up = &above[(cy * row + cx + 1) * nf..(cy * row + cx + 2) * nf];
                 let out = &mut here[(cx + 1) * nf..(cx + 2) * nf];

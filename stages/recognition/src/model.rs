@@ -123,7 +123,7 @@ impl Default for RecognitionParams {
             found_fraction: 0.5,
             cell_threshold: 0.5,
             pixel_threshold: 0.5,
-            smooth_radius: 3,
+            smooth_radius: 2,
             max_growth: 0.5,
         }
     }

@@ -173,17 +173,43 @@ fn main() {
                         return (0.0, 0.0, 0.0, true, true, gt_fail, true, score, empty_score);
                     };
                     let io = iou(s.mask, gt);
+                    let (mask, roi) = (s.mask.to_vec(), s.roi);
                     if std::env::var("DUMP").map(|d| d.split(',').any(|x| x == i.to_string())).unwrap_or(false) {
                         let mut img = f.image.clone();
                         for (k, px) in img.pixels_mut().enumerate() {
-                            let (m, g) = (s.mask[k] != 0, gt[k] != 0);
+                            let (m, g) = (mask[k] != 0, gt[k] != 0);
                             if m && !g { px.0 = [255, 0, 255]; }
                             if !m && g { px.0 = [0, 255, 255]; }
                         }
                         img.save(format!("/tmp/seg_{name}_{bg}_{i}.png")).unwrap();
                         f.image.save(format!("/tmp/raw_{name}_{bg}_{i}.png")).unwrap();
+                        let wts = *seg.colour_weights();
+                        let wimg = image::GrayImage::from_fn(w, h, |x, y| image::Luma([wts[index.get(x, y) as usize]]));
+                        wimg.save(format!("/tmp/w_{name}_{bg}_{i}.png")).unwrap();
+                        let (gx, gy) = det.grid();
+                        let (reg, cs) = (seg.region(), seg.cell_scores());
+                        for cy in 0..gy {
+                            let line: String = (0..gx).map(|cx| {
+                                let k = cy * gx + cx;
+                                match reg[k] { 0 => ' ', 1 => if cs[k] >= 0.5 { '+' } else { '.' }, _ => if cs[k] >= 0.5 { '#' } else { '?' } }
+                            }).collect();
+                            eprintln!("{line}");
+                        }
+                        eprintln!("det cells {:?}", d.cells);
+                        let rgbs = est.database().palette.centre_rgb();
+                        let freq = det.model_freq();
+                        let mut lost = vec![0u32; 256];
+                        let mut kept = vec![0u32; 256];
+                        for k in 0..(w * h) as usize {
+                            if gt[k] != 0 && mask[k] == 0 { lost[index.data[k] as usize] += 1; }
+                            if gt[k] != 0 && mask[k] != 0 { kept[index.data[k] as usize] += 1; }
+                        }
+                        for k in 0..256 {
+                            if lost[k] + kept[k] > 50 {
+                                eprintln!("colour {k:3} {:?} f {:.3} w {:3} lost {} kept {}", rgbs.get(k), freq.get(k).copied().unwrap_or(0.0), wts[k], lost[k], kept[k]);
+                            }
+                        }
                     }
-                    let (mask, roi) = (s.mask.to_vec(), s.roi);
                     let e = est.estimate(index, Some(&mask), roi, Some(1.0), Refinement::Parabolic);
                     let fail = fail_of(e);
                     let e2 = est.estimate(index, Some(&mask), roi, None, Refinement::Parabolic);
@@ -254,6 +280,8 @@ fn main() {
             .quantise_into(f.image.as_raw(), 640, 480, &mut index);
     }
     let q = t.elapsed().as_secs_f64() / reps as f64;
+    let owned = index.data.iter().filter(|&&v| v != 255).count();
+    println!("owned pixels {owned} of {}", index.data.len());
     println!(
         "timing: quantise {:.3} ms, prepare {:.3} ms, scan {:.3} ms, segment {:.3} ms",
         q * 1e3,

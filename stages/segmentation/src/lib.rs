@@ -60,6 +60,7 @@ pub struct Segmenter {
     /// Weight per palette index, 0..=255 (the likelihood in 1/255).
     weight: [u8; 256],
     sums: Vec<f32>,
+    inner: Vec<f32>,
     cell_score: Vec<f32>,
     /// Per cell: 0 outside, 1 candidate (inside the search area), 2 region.
     region: Vec<u8>,
@@ -82,6 +83,7 @@ impl Segmenter {
             last_roi: Rect::default(),
             weight: [0; 256],
             sums: Vec::new(),
+            inner: Vec::new(),
             cell_score: Vec::new(),
             region: Vec::new(),
             queue: Vec::new(),
@@ -148,17 +150,23 @@ impl Segmenter {
         let win = detection.cells;
         let wc = detector.window_cells().max(win.width()).max(win.height());
 
-        // Colour weights from the context: the window plus one window side
-        // around it.
-        let ctx = expand(win, wc, gx, gy);
+        let grow = (p.max_growth * wc as f32).ceil() as u32;
+        let search = expand(win, grow, gx, gy);
+        // Colour weights: object frequencies from the model, background
+        // frequencies from a ring around the search area (one window side
+        // wide), where the object is not expected.
+        let ctx = expand(search, wc, gx, gy);
         if self.sums.len() != nf {
             self.sums.resize(nf, 0.0);
+            self.inner.resize(nf, 0.0);
         }
         detector.sum_cells(ctx, &mut self.sums);
-        let ctx_px = ((ctx.x1 as usize * cell).min(w) - ctx.x0 as usize * cell) as f32
-            * ((ctx.y1 as usize * cell).min(self.height as usize) - ctx.y0 as usize * cell) as f32;
-        let area = (model.size_px * detection.scale).powi(2);
-        let bg_px = (ctx_px - area).max(ctx_px * 0.25).max(1.0);
+        detector.sum_cells(search, &mut self.inner);
+        let px = |r: CellRect| {
+            ((r.x1 as usize * cell).min(w) - r.x0 as usize * cell) as f32
+                * ((r.y1 as usize * cell).min(self.height as usize) - r.y0 as usize * cell) as f32
+        };
+        let ring_px = px(ctx) - px(search);
         self.weight = [0; 256];
         let freq = detector.model_freq();
         for k in 0..c {
@@ -166,13 +174,16 @@ impl Segmenter {
             if f <= 0.0 {
                 continue;
             }
-            let b = (self.sums[k] - f * area).max(0.0) / bg_px;
+            // No ring (the search area fills the frame): no background evidence.
+            let b = if ring_px > 0.0 {
+                (self.sums[k] - self.inner[k]).max(0.0) / ring_px
+            } else {
+                0.0
+            };
             self.weight[k] = (255.0 * f / (f + b)).round() as u8;
         }
 
         // Cell likelihoods over the search area.
-        let grow = (p.max_growth * wc as f32).ceil() as u32;
-        let search = expand(win, grow, gx, gy);
         if self.cell_score.len() != gx * gy {
             self.cell_score = vec![0.0; gx * gy];
             self.region = vec![0; gx * gy];

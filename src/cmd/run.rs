@@ -1,0 +1,313 @@
+//! `acch run`: stream frames through every stage and report accuracy and
+//! per-stage latency. The embedded default needs no camera and no files: the
+//! built-in fruitbox on the wood background, seen by a simulated eye-in-hand
+//! camera moving over the hemisphere, with its database trained on first use
+//! and cached.
+//!
+//! The stages run chained in this process (see `crate::pipeline`); the
+//! multi-process pipeline over shared memory replaces this loop when it lands.
+
+use super::common::{self, ObjectArgs};
+use crate::model;
+use crate::pipeline::{FrameResult, Pipeline};
+use acch_capture::{Background, DEFAULT_DISTANCE, Rendered, Trajectory};
+use acch_core::ViewDatabase;
+use acch_pose::phi_error;
+use acch_pose::train::TrainConfig;
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Confidence-training scenes per background of the cached default database.
+const DEFAULT_CONFIDENCE_SCENES: usize = 80;
+
+/// Arguments of `acch run`.
+#[derive(Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    object: ObjectArgs,
+    /// View database; by default one is trained for the object on first use
+    /// and cached (see --cache-dir).
+    #[arg(long, value_name = "FILE.acchdb")]
+    db: Option<PathBuf>,
+    /// Where trained default databases are cached.
+    #[arg(long, env = "ACCH_CACHE_DIR", value_name = "DIR")]
+    cache_dir: Option<PathBuf>,
+    /// Background of the simulated scene: plain, A, B, C, clutter, clutter-similar.
+    #[arg(long, default_value = "A")]
+    background: Background,
+    /// Frames to process.
+    #[arg(long, default_value_t = 300)]
+    frames: u64,
+    /// Camera frame rate; 0 runs free (as fast as the stages go).
+    #[arg(long, default_value_t = 30.0)]
+    fps: f64,
+    /// Seed of the camera trajectory and the scene.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Print one line per frame.
+    #[arg(long, short)]
+    verbose: bool,
+    /// Write the summary as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+}
+
+/// Latency percentiles of one stage, milliseconds.
+#[derive(Serialize, Debug)]
+pub struct Percentiles {
+    /// Median.
+    pub p50_ms: f64,
+    /// 90th percentile.
+    pub p90_ms: f64,
+    /// 99th percentile.
+    pub p99_ms: f64,
+    /// Largest.
+    pub max_ms: f64,
+}
+
+impl Percentiles {
+    /// Percentiles of nanosecond samples.
+    pub fn of(samples: &mut [u64]) -> Self {
+        samples.sort_unstable();
+        let at = |q: f64| -> f64 {
+            if samples.is_empty() {
+                return 0.0;
+            }
+            let i = ((samples.len() - 1) as f64 * q).round() as usize;
+            samples[i] as f64 / 1e6
+        };
+        Percentiles {
+            p50_ms: at(0.5),
+            p90_ms: at(0.9),
+            p99_ms: at(0.99),
+            max_ms: at(1.0),
+        }
+    }
+}
+
+#[derive(Serialize)]
+struct Summary {
+    object: String,
+    background: String,
+    frames: u64,
+    fps_target: f64,
+    fps_achieved: f64,
+    found: u64,
+    estimated: u64,
+    accepted: u64,
+    accepted_mean_phi_err_deg: f64,
+    accepted_mean_theta_err_deg: f64,
+    accepted_failure_rate: f64,
+    all_failure_rate: f64,
+    latency: Latency,
+}
+
+#[derive(Serialize)]
+struct Latency {
+    capture: Percentiles,
+    recognition: Percentiles,
+    segmentation: Percentiles,
+    pose: Percentiles,
+    confidence: Percentiles,
+    /// Frame captured to result ready (excludes rendering the frame).
+    processing: Percentiles,
+}
+
+/// Runs `acch run`.
+pub fn run(args: RunArgs) -> Result<()> {
+    if !(args.fps.is_finite() && args.fps >= 0.0) {
+        bail!("--fps {} must be a number >= 0", args.fps);
+    }
+    let object = args.object.load()?;
+    let db = match &args.db {
+        Some(path) => ViewDatabase::load(path)?,
+        None => cached_database(&object, args.cache_dir.clone())?,
+    };
+    let renderer = common::renderer(object.clone(), args.background.clone(), args.seed);
+    let trajectory = Trajectory::new(args.seed, if args.fps > 0.0 { args.fps } else { 30.0 }, DEFAULT_DISTANCE)?;
+    let mut frame = renderer.render(&trajectory.frame(0).view, 0);
+    let (w, h) = frame.image.dimensions();
+    let mut pipeline = Pipeline::new(db, w, h, Some(DEFAULT_DISTANCE as f32))?;
+    eprintln!(
+        "acch run: {} on background {}, {} frames at {}, {} stages in one process",
+        object.name(),
+        args.background,
+        args.frames,
+        if args.fps > 0.0 { format!("{} fps", args.fps) } else { "free-running".into() },
+        if pipeline.confidence().is_some() { 5 } else { 4 },
+    );
+
+    let n = args.frames as usize;
+    let mut times: [Vec<u64>; 6] = std::array::from_fn(|_| Vec::with_capacity(n));
+    let (mut found, mut estimated, mut accepted, mut acc_fail, mut all_fail) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut sum_phi, mut sum_theta) = (0.0f64, 0.0f64);
+    let bar = if args.verbose {
+        indicatif::ProgressBar::hidden()
+    } else {
+        common::progress(args.frames, "frames")
+    };
+    let start = Instant::now();
+    for i in 0..args.frames {
+        if args.fps > 0.0 {
+            let due = start + Duration::from_secs_f64(i as f64 / args.fps);
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
+        let t = Instant::now();
+        let view = trajectory.frame(i).view;
+        renderer.render_into(&view, common::frame_seed(args.seed, i as usize), &mut frame);
+        times[0].push(t.elapsed().as_nanos() as u64);
+        let r = pipeline.process(frame.image.as_raw(), w, h);
+        for (k, v) in [
+            r.times.recognition_ns,
+            r.times.segmentation_ns,
+            r.times.pose_ns,
+            r.times.confidence_ns,
+            r.times.total_ns(),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            times[k + 1].push(v);
+        }
+        found += r.detection.is_some() as u64;
+        let errors = r.estimate.map(|e| {
+            (
+                (e.theta_deg - frame.truth.theta_deg as f32).abs(),
+                phi_error(e.phi_deg, frame.truth.phi_deg as f32),
+            )
+        });
+        let failed = errors.is_none_or(|(dt, dp)| dt > super::eval::FAIL_THETA_DEG || dp > super::eval::FAIL_PHI_DEG);
+        if let Some((dt, dp)) = errors {
+            estimated += 1;
+            all_fail += failed as u64;
+            if r.accepted() {
+                accepted += 1;
+                acc_fail += failed as u64;
+                sum_theta += dt as f64;
+                sum_phi += dp as f64;
+            }
+        }
+        if args.verbose {
+            println!("{}", frame_line(i, &frame, &r));
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let elapsed = start.elapsed().as_secs_f64();
+    let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
+    let [capture, recognition, segmentation, pose, confidence, processing] = times;
+    let pct = |mut v: Vec<u64>| Percentiles::of(&mut v);
+    let summary = Summary {
+        object: object.name().to_owned(),
+        background: args.background.to_string(),
+        frames: args.frames,
+        fps_target: args.fps,
+        fps_achieved: args.frames as f64 / elapsed,
+        found,
+        estimated,
+        accepted,
+        accepted_mean_phi_err_deg: sum_phi / accepted.max(1) as f64,
+        accepted_mean_theta_err_deg: sum_theta / accepted.max(1) as f64,
+        accepted_failure_rate: ratio(acc_fail, accepted),
+        all_failure_rate: ratio(all_fail, estimated),
+        latency: Latency {
+            capture: pct(capture),
+            recognition: pct(recognition),
+            segmentation: pct(segmentation),
+            pose: pct(pose),
+            confidence: pct(confidence),
+            processing: pct(processing),
+        },
+    };
+    print_summary(&summary);
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn frame_line(i: u64, frame: &Rendered, r: &FrameResult) -> String {
+    let truth = format!("truth θ {:5.1} φ {:5.1}", frame.truth.theta_deg, frame.truth.phi_deg);
+    match (r.estimate, r.rating) {
+        (None, _) => format!("{i:5}  {truth}  not found"),
+        (Some(e), rating) => format!(
+            "{i:5}  {truth}  est θ {:5.1} φ {:5.1}  match {:.3}  {}  {:.2} ms",
+            e.theta_deg,
+            e.phi_deg,
+            e.best_value,
+            match rating {
+                Some(c) => format!("conf {:.2} {}", c.confidence, if c.accepted { "accepted" } else { "rejected" }),
+                None => "unrated".into(),
+            },
+            r.times.total_ns() as f64 / 1e6
+        ),
+    }
+}
+
+fn print_summary(s: &Summary) {
+    println!(
+        "{} frames of {} on background {} at {:.1} fps: found {}, estimated {}, accepted {}",
+        s.frames, s.object, s.background, s.fps_achieved, s.found, s.estimated, s.accepted
+    );
+    println!(
+        "accepted: mean |dphi| {:.2} deg, mean |dtheta| {:.2} deg, failures {:.1} % (all estimates: {:.1} %)",
+        s.accepted_mean_phi_err_deg,
+        s.accepted_mean_theta_err_deg,
+        100.0 * s.accepted_failure_rate,
+        100.0 * s.all_failure_rate
+    );
+    println!("{:<14} {:>8} {:>8} {:>8} {:>8}", "latency (ms)", "p50", "p90", "p99", "max");
+    let l = &s.latency;
+    for (name, p) in [
+        ("capture", &l.capture),
+        ("recognition", &l.recognition),
+        ("segmentation", &l.segmentation),
+        ("pose", &l.pose),
+        ("confidence", &l.confidence),
+        ("processing", &l.processing),
+    ] {
+        println!(
+            "{name:<14} {:>8.3} {:>8.3} {:>8.3} {:>8.3}",
+            p.p50_ms, p.p90_ms, p.p99_ms, p.max_ms
+        );
+    }
+}
+
+/// The default database of a built-in object: trained on first use with the
+/// default settings and cached, so later runs start at once.
+fn cached_database(object: &std::sync::Arc<acch_capture::Object>, dir: Option<PathBuf>) -> Result<ViewDatabase> {
+    let dir = dir
+        .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("acch")))
+        .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
+        .unwrap_or_else(|| std::env::temp_dir().join("acch"));
+    let path = dir.join(format!(
+        "{}-v{}-{}.acchdb",
+        object.name(),
+        acch_core::database::FORMAT_VERSION,
+        env!("CARGO_PKG_VERSION")
+    ));
+    if path.exists() {
+        match ViewDatabase::load(&path) {
+            Ok(db) => return Ok(db),
+            Err(e) => eprintln!("acch run: retraining: cached database unusable: {e}"),
+        }
+    }
+    eprintln!("acch run: training the database of '{}' (first use; cached in {})", object.name(), path.display());
+    let training = model::RenderedTraining {
+        views: super::eval::PAPER_GRID.parse()?,
+        background: Background::default(),
+        distance: DEFAULT_DISTANCE,
+        seed: 0,
+    };
+    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, acch_confidence::Kind::Features));
+    let db = model::train_object(object, &TrainConfig::default(), &training, confidence)?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    db.save(&path)?;
+    Ok(db)
+}

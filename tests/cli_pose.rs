@@ -1,0 +1,126 @@
+//! End-to-end tests of the `acch` binary: train a database, render test
+//! images, estimate their pose, export features for NumPy, and fail clearly
+//! on bad input.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn acch(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run acch")
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "acch failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The value after `key` in "key value" output.
+fn field(text: &str, key: &str) -> f32 {
+    let mut words = text.split_whitespace();
+    while let Some(w) = words.next() {
+        if w == key {
+            return words.next().unwrap().parse().unwrap();
+        }
+    }
+    panic!("no '{key}' in {text}");
+}
+
+fn phi_error(a: f32, b: f32) -> f32 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
+}
+
+#[test]
+fn train_estimate_and_features_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&acch(&["train", "--object", "fruitbox", "--out", "fb.acchdb"], d));
+    ok(&acch(
+        &["render", "--object", "fruitbox", "--views", "random:3", "--seed", "11", "--out", "test"],
+        d,
+    ));
+    let labels = std::fs::read_to_string(d.join("test/labels.csv")).unwrap();
+    for (i, line) in labels.lines().skip(1).enumerate() {
+        let cols: Vec<&str> = line.split(',').collect();
+        let (theta, phi): (f32, f32) = (cols[1].parse().unwrap(), cols[2].parse().unwrap());
+        let image = format!("test/view_{i:04}.png");
+        let mask = format!("test/view_{i:04}_mask.png");
+        let out = ok(&acch(
+            &[
+                "estimate", "--db", "fb.acchdb", &image, "--mask", &mask, "--distance", "5",
+                "--csv", "response.csv", "--plot", "response.png",
+            ],
+            d,
+        ));
+        let (est_theta, est_phi) = (field(&out, "theta"), field(&out, "phi"));
+        assert!((est_theta - theta).abs() <= 10.0, "theta {est_theta} vs {theta}\n{out}");
+        assert!(phi_error(est_phi, phi) <= 20.0, "phi {est_phi} vs {phi}\n{out}");
+        assert!(out.contains("top 5 views"), "{out}");
+    }
+    let csv = std::fs::read_to_string(d.join("response.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 216, "one row per training view");
+    let png = image::open(d.join("response.png")).unwrap();
+    assert!(png.width() > 500);
+
+    ok(&acch(
+        &[
+            "features", "--db", "fb.acchdb", "test/view_0000.png", "--mask",
+            "test/view_0000_mask.png", "--out", "h.npy",
+        ],
+        d,
+    ));
+    // NumPy reads the array independently of our code.
+    let py = Command::new("python3")
+        .args([
+            "-c",
+            "import numpy as np, sys; a = np.load(sys.argv[1]); \
+             print(a.dtype, a.shape, round(float(a.sum()), 4), bool((a >= 0).all()))",
+            d.join("h.npy").to_str().unwrap(),
+        ])
+        .output()
+        .expect("python3 (install numpy: pip install numpy)");
+    let text = String::from_utf8_lossy(&py.stdout);
+    assert!(py.status.success(), "{}", String::from_utf8_lossy(&py.stderr));
+    assert_eq!(text.trim(), "float32 (12, 40, 40) 1.0 True");
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("junk.acchdb"), b"ACCHDB\r\n\x01\x00\x00\x00garbage").unwrap();
+    std::fs::write(d.join("img.png"), b"not a png").unwrap();
+
+    let out = acch(&["estimate", "--db", "junk.acchdb", "img.png", "--mask", "img.png"], d);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("junk.acchdb") && err.contains("truncated"), "{err}");
+
+    let out = acch(&["estimate", "--db", "missing.acchdb", "img.png"], d);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("missing.acchdb"), "{err}");
+
+    let out = acch(&["train", "--object", "fruitbox", "--views", "grid:60:90", "--out", "small.acchdb"], d);
+    ok(&out);
+    let out = acch(&["estimate", "--db", "small.acchdb", "img.png", "--mask", "img.png"], d);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("img.png"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+
+    let out = acch(&["train", "--object", "fruitbox", "--r-max", "5", "--out", "x.acchdb"], d);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("r_max"));
+    assert!(!d.join("x.acchdb").exists(), "nothing written on error");
+}
