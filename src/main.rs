@@ -4,6 +4,7 @@ mod cmd;
 mod model;
 mod pipeline;
 mod plot;
+mod stages;
 
 use clap::{Parser, Subcommand};
 
@@ -20,6 +21,10 @@ struct Cli {
 enum Command {
     /// Stream frames through every stage (default: built-in fruitbox, simulated camera).
     Run(cmd::run::RunArgs),
+    /// One stage of the pipeline as a process (started by `acch run`).
+    Stage(cmd::stage::StageArgs),
+    /// Print what arrives on zenoh (seeds, results).
+    Listen(cmd::listen::ListenArgs),
     /// Render views of an object with ground truth (images, masks, labels.csv).
     Render(cmd::render::RenderArgs),
     /// Train a view database from a rendered object or labelled images.
@@ -44,6 +49,8 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Run(args) => cmd::run::run(args),
         Command::Render(args) => cmd::render::run(args),
+        Command::Stage(args) => cmd::stage::run(args),
+        Command::Listen(args) => cmd::listen::run(args),
         Command::Train(args) => cmd::train::run(args),
         Command::Eval(args) => cmd::eval::run(args),
         Command::Estimate(args) => cmd::estimate::run(args),

@@ -15,7 +15,8 @@ use std::sync::Arc;
 
 /// Backgrounds the confidence network is trained on: every kind the
 /// evaluations use, so it sees good and bad segmentations alike.
-pub const CONFIDENCE_BACKGROUNDS: [&str; 6] = ["plain", "A", "B", "C", "clutter", "clutter-similar"];
+pub const CONFIDENCE_BACKGROUNDS: [&str; 6] =
+    ["plain", "A", "B", "C", "clutter", "clutter-similar"];
 
 /// Seeds of confidence-training scenes start here; evaluations use small
 /// seeds, so training and evaluation scenes never share a scene or a pose.
@@ -50,9 +51,13 @@ pub fn train_views(
 
 /// Renders the training views of `object` and trains histograms and the
 /// recognition model.
-pub fn train_rendered(object: &Arc<Object>, config: &TrainConfig, training: &RenderedTraining) -> Result<ViewDatabase> {
+pub fn train_rendered(
+    object: &Arc<Object>,
+    config: &TrainConfig,
+    training: &RenderedTraining,
+) -> Result<ViewDatabase> {
     let views = training.views.views(training.distance, training.seed);
-    let renderer = common::renderer(object.clone(), training.background.clone(), training.seed);
+    let renderer = common::renderer(object.clone(), training.background, training.seed);
     let renders = common::render_views(&renderer, &views, training.seed, "train views");
     let labelled: Vec<LabelledView> = renders
         .iter()
@@ -105,7 +110,8 @@ pub fn confidence_samples(
                         return Ok(None);
                     };
                     let est = pipeline.estimator();
-                    let (resp, slices, views) = (est.response(), est.slices(), est.database().views());
+                    let (resp, slices, views) =
+                        (est.response(), est.slices(), est.database().views());
                     Ok(Some(ConfidenceSample {
                         features: Kind::Features.input(&params, resp, slices, views)?,
                         response: Kind::Response.input(&params, resp, slices, views)?,
@@ -124,6 +130,14 @@ pub fn confidence_samples(
     }
     Ok(samples)
 }
+
+/// The confidence network's default input, chosen by measurement on the
+/// table-2 protocol (README): the whole response separates reliable from
+/// unreliable estimates better than the paper's four features.
+pub const DEFAULT_CONFIDENCE_KIND: Kind = Kind::Response;
+
+/// Confidence-training scenes per background used by default.
+pub const DEFAULT_CONFIDENCE_SCENES: usize = 80;
 
 /// Lowest elevation of confidence-training poses: below the grid's 45°, so
 /// the network also sees views the database does not cover and must learn to
@@ -154,7 +168,12 @@ fn renderer_height(renders: &[acch_capture::Rendered]) -> u32 {
 /// Trains a confidence network of `kind` on `samples` and stores it in `db`.
 /// Samples of one class only (every estimate right, or every one wrong)
 /// cannot teach it anything: that is an error naming the counts.
-pub fn train_confidence(db: &mut ViewDatabase, samples: &[ConfidenceSample], kind: Kind, seed: u64) -> Result<()> {
+pub fn train_confidence(
+    db: &mut ViewDatabase,
+    samples: &[ConfidenceSample],
+    kind: Kind,
+    seed: u64,
+) -> Result<()> {
     let data: Vec<(Vec<f32>, bool)> = samples
         .iter()
         .map(|s| {
@@ -188,7 +207,8 @@ pub fn train_object(
 ) -> Result<ViewDatabase> {
     let mut db = train_rendered(object, config, training)?;
     if let Some((scenes, kind)) = confidence.filter(|(n, _)| *n > 0) {
-        let samples = confidence_samples(&db, object, scenes, CONFIDENCE_SEED_BASE, training.distance)?;
+        let samples =
+            confidence_samples(&db, object, scenes, CONFIDENCE_SEED_BASE, training.distance)?;
         let reliable = samples.iter().filter(|s| s.reliable).count();
         tracing::info!(
             "confidence: {} estimates from {} scenes, {} reliable, {} not",

@@ -140,3 +140,67 @@ pub fn response_plot(
         Ok(())
     })
 }
+
+/// A reliability diagram: per confidence bin, the share of reliable
+/// estimates against the mean confidence, one series per network; the
+/// diagonal is perfect calibration. Bar labels give the bin counts.
+pub fn reliability_diagram(
+    path: &Path,
+    title: &str,
+    series: &[(&str, &[acch_confidence::Bin])],
+) -> Result<()> {
+    let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+    let colours = [BLUE, RED, GREEN, MAGENTA];
+    draw_png(path, (640, 560), |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(title, ("sans-serif", 18))
+            .margin(14)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0f64..1f64, 0f64..1f64)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .x_desc("predicted confidence")
+            .y_desc("share of reliable estimates")
+            .draw()
+            .map_err(e)?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![(0.0, 0.0), (1.0, 1.0)],
+                BLACK.mix(0.4).stroke_width(1),
+            )))
+            .map_err(e)?
+            .label("perfect calibration")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], BLACK.mix(0.4)));
+        for (k, (name, bins)) in series.iter().enumerate() {
+            let colour = colours[k % colours.len()];
+            let points: Vec<(f64, f64)> = bins
+                .iter()
+                .filter(|b| b.count > 0)
+                .map(|b| (b.mean_confidence, b.accuracy))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                .map_err(e)?
+                .label(format!(
+                    "{name} ({} estimates)",
+                    bins.iter().map(|b| b.count).sum::<usize>()
+                ))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                });
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(e)?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
+        Ok(())
+    })
+}

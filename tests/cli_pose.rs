@@ -44,9 +44,15 @@ fn phi_error(a: f32, b: f32) -> f32 {
 fn train_estimate_and_features_round_trip() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&acch(&["train", "--object", "fruitbox", "--out", "fb.acchdb"], d));
     ok(&acch(
-        &["render", "--object", "fruitbox", "--views", "random:3", "--seed", "11", "--out", "test"],
+        &["train", "--object", "fruitbox", "--out", "fb.acchdb"],
+        d,
+    ));
+    ok(&acch(
+        &[
+            "render", "--object", "fruitbox", "--views", "random:3", "--seed", "11", "--out",
+            "test",
+        ],
         d,
     ));
     let labels = std::fs::read_to_string(d.join("test/labels.csv")).unwrap();
@@ -57,14 +63,30 @@ fn train_estimate_and_features_round_trip() {
         let mask = format!("test/view_{i:04}_mask.png");
         let out = ok(&acch(
             &[
-                "estimate", "--db", "fb.acchdb", &image, "--mask", &mask, "--distance", "5",
-                "--csv", "response.csv", "--plot", "response.png",
+                "estimate",
+                "--db",
+                "fb.acchdb",
+                &image,
+                "--mask",
+                &mask,
+                "--distance",
+                "5",
+                "--csv",
+                "response.csv",
+                "--plot",
+                "response.png",
             ],
             d,
         ));
         let (est_theta, est_phi) = (field(&out, "theta"), field(&out, "phi"));
-        assert!((est_theta - theta).abs() <= 10.0, "theta {est_theta} vs {theta}\n{out}");
-        assert!(phi_error(est_phi, phi) <= 20.0, "phi {est_phi} vs {phi}\n{out}");
+        assert!(
+            (est_theta - theta).abs() <= 10.0,
+            "theta {est_theta} vs {theta}\n{out}"
+        );
+        assert!(
+            phi_error(est_phi, phi) <= 20.0,
+            "phi {est_phi} vs {phi}\n{out}"
+        );
         assert!(out.contains("top 5 views"), "{out}");
     }
     let csv = std::fs::read_to_string(d.join("response.csv")).unwrap();
@@ -74,8 +96,14 @@ fn train_estimate_and_features_round_trip() {
 
     ok(&acch(
         &[
-            "features", "--db", "fb.acchdb", "test/view_0000.png", "--mask",
-            "test/view_0000_mask.png", "--out", "h.npy",
+            "features",
+            "--db",
+            "fb.acchdb",
+            "test/view_0000.png",
+            "--mask",
+            "test/view_0000_mask.png",
+            "--out",
+            "h.npy",
         ],
         d,
     ));
@@ -90,7 +118,11 @@ fn train_estimate_and_features_round_trip() {
         .output()
         .expect("python3 (install numpy: pip install numpy)");
     let text = String::from_utf8_lossy(&py.stdout);
-    assert!(py.status.success(), "{}", String::from_utf8_lossy(&py.stderr));
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stderr)
+    );
     assert_eq!(text.trim(), "float32 (12, 40, 40) 1.0 True");
 }
 
@@ -101,25 +133,64 @@ fn bad_input_gives_clear_errors() {
     std::fs::write(d.join("junk.acchdb"), b"ACCHDB\r\n\x01\x00\x00\x00garbage").unwrap();
     std::fs::write(d.join("img.png"), b"not a png").unwrap();
 
-    let out = acch(&["estimate", "--db", "junk.acchdb", "img.png", "--mask", "img.png"], d);
+    let out = acch(
+        &[
+            "estimate",
+            "--db",
+            "junk.acchdb",
+            "img.png",
+            "--mask",
+            "img.png",
+        ],
+        d,
+    );
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("junk.acchdb") && err.contains("truncated"), "{err}");
+    assert!(
+        err.contains("junk.acchdb") && err.contains("truncated"),
+        "{err}"
+    );
 
     let out = acch(&["estimate", "--db", "missing.acchdb", "img.png"], d);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("missing.acchdb"), "{err}");
 
-    let out = acch(&["train", "--object", "fruitbox", "--views", "grid:60:90", "--out", "small.acchdb"], d);
+    let out = acch(
+        &[
+            "train",
+            "--object",
+            "fruitbox",
+            "--views",
+            "grid:60:90",
+            "--out",
+            "small.acchdb",
+        ],
+        d,
+    );
     ok(&out);
-    let out = acch(&["estimate", "--db", "small.acchdb", "img.png", "--mask", "img.png"], d);
+    let out = acch(
+        &[
+            "estimate",
+            "--db",
+            "small.acchdb",
+            "img.png",
+            "--mask",
+            "img.png",
+        ],
+        d,
+    );
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("img.png"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 
-    let out = acch(&["train", "--object", "fruitbox", "--r-max", "5", "--out", "x.acchdb"], d);
+    let out = acch(
+        &[
+            "train", "--object", "fruitbox", "--r-max", "5", "--out", "x.acchdb",
+        ],
+        d,
+    );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("r_max"));
     assert!(!d.join("x.acchdb").exists(), "nothing written on error");

@@ -1,12 +1,15 @@
 //! `acch estimate`: the 2-DOF pose of the object in one image.
 
+use crate::pipeline::{FrameResult, Pipeline};
+use acch_confidence::Model as ConfidenceModel;
 use acch_core::{IndexImage, Rect, ViewDatabase};
 use acch_pose::train::mask_bbox;
 use acch_pose::{Estimate, PoseEstimator, Refinement};
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use image::{Rgb, RgbImage};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// An image to estimate from, and how to find the object in it.
 #[derive(Args, Clone, Debug)]
@@ -17,7 +20,8 @@ pub struct Input {
     /// Image (PNG) showing the object.
     #[arg(value_name = "IMAGE")]
     pub image: PathBuf,
-    /// Object mask (PNG, non-zero = object), e.g. one that `acch render` wrote.
+    /// Object mask (PNG, non-zero = object), e.g. one that `acch render`
+    /// wrote. Without it, recognition and segmentation find the object.
     #[arg(long, value_name = "MASK")]
     pub mask: Option<PathBuf>,
     /// Camera distance in object bounding radii, when known; otherwise the
@@ -30,6 +34,8 @@ pub struct Input {
 pub struct Loaded {
     /// The estimator over the database.
     pub estimator: PoseEstimator,
+    /// The database's confidence network, if it has one.
+    pub confidence: Option<ConfidenceModel>,
     /// The image as palette indices.
     pub index: IndexImage,
     /// The object mask.
@@ -63,45 +69,161 @@ impl Loaded {
     }
 }
 
-/// Loads database, image and mask.
-pub fn load_input(input: &Input) -> Result<Loaded> {
+/// Loads database, image and mask. Without a mask, recognition and
+/// segmentation find the object; `debug_dir` then receives their pictures.
+/// `Ok(None)` means the object was not found.
+pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Loaded>> {
     let db = ViewDatabase::load(&input.db)?;
     let rgb = image::open(&input.image)
         .with_context(|| format!("reading image {}", input.image.display()))?
         .to_rgb8();
     let (w, h) = rgb.dimensions();
-    let Some(mask_path) = &input.mask else {
-        bail!("no --mask given: this build estimates from a masked object only");
-    };
-    let mask = image::open(mask_path)
-        .with_context(|| format!("reading mask {}", mask_path.display()))?
-        .to_luma8();
-    if mask.dimensions() != (w, h) {
-        bail!(
-            "{}: mask is {}x{} but the image is {w}x{h}",
-            mask_path.display(),
-            mask.width(),
-            mask.height()
-        );
-    }
-    let mask = mask.into_raw();
-    let Some(roi) = mask_bbox(&mask, w, h) else {
-        bail!("{}: the mask is empty", mask_path.display());
-    };
     if let Some(d) = input.distance
         && !(d.is_finite() && d > 0.0)
     {
         bail!("--distance {d} must be a positive number");
     }
+    let (mask, roi) = match &input.mask {
+        Some(mask_path) => {
+            let mask = image::open(mask_path)
+                .with_context(|| format!("reading mask {}", mask_path.display()))?
+                .to_luma8();
+            if mask.dimensions() != (w, h) {
+                bail!(
+                    "{}: mask is {}x{} but the image is {w}x{h}",
+                    mask_path.display(),
+                    mask.width(),
+                    mask.height()
+                );
+            }
+            let mask = mask.into_raw();
+            let Some(roi) = mask_bbox(&mask, w, h) else {
+                bail!("{}: the mask is empty", mask_path.display());
+            };
+            (mask, roi)
+        }
+        None => {
+            let mut pipeline = Pipeline::new(db.clone(), w, h, input.distance)?;
+            let result = pipeline.process(rgb.as_raw(), w, h);
+            if let Some(dir) = debug_dir {
+                write_debug(dir, &rgb, &pipeline, &result)?;
+            }
+            match result.roi {
+                Some(roi) => (pipeline.segmenter().mask().to_vec(), roi),
+                None => return Ok(None),
+            }
+        }
+    };
     let scale = input.distance.map(|d| db.train_distance / d);
     let index = db.palette.quantise(rgb.as_raw(), w, h);
-    Ok(Loaded {
+    let confidence = match ConfidenceModel::load(&db) {
+        Ok(m) => Some(m),
+        Err(acch_confidence::ConfidenceError::MissingSection) => None,
+        Err(e) => {
+            return Err(e).with_context(|| format!("{}: confidence network", input.db.display()));
+        }
+    };
+    Ok(Some(Loaded {
         estimator: PoseEstimator::new(db)?,
+        confidence,
         index,
         mask,
         roi,
         scale,
-    })
+    }))
+}
+
+/// Writes what recognition and segmentation saw: the window-score heat map,
+/// the frame with the window (red) and grown region (green), and the mask.
+fn write_debug(
+    dir: &Path,
+    rgb: &RgbImage,
+    pipeline: &Pipeline,
+    result: &FrameResult,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let (w, h) = rgb.dimensions();
+    let save = |img: &RgbImage, name: &str| {
+        let path = dir.join(name);
+        img.save(&path)
+            .with_context(|| format!("writing {}", path.display()))
+    };
+    // Heat map: each window position's score at its centre cell.
+    let heat = pipeline.detector().heat_map();
+    let max = heat.scores.iter().copied().fold(f32::EPSILON, f32::max);
+    let cell = heat.cell_px as i64;
+    let half = heat.window_cells as i64 / 2;
+    let mut img = RgbImage::new(w, h);
+    for j in 0..heat.height {
+        for i in 0..heat.width {
+            let v = heat.scores[j * heat.width + i] / max;
+            let colour = heat_colour(v);
+            let (cx, cy) = (
+                (heat.origin.0 as i64 + i as i64 + half) * cell,
+                (heat.origin.1 as i64 + j as i64 + half) * cell,
+            );
+            for y in cy.max(0)..(cy + cell).min(h as i64) {
+                for x in cx.max(0)..(cx + cell).min(w as i64) {
+                    img.put_pixel(x as u32, y as u32, colour);
+                }
+            }
+        }
+    }
+    save(&img, "heat.png")?;
+    let mut img = rgb.clone();
+    if let Some(d) = &result.detection {
+        draw_rect(&mut img, d.window, Rgb([230, 20, 20]));
+    }
+    if let Some(roi) = result.roi {
+        draw_rect(&mut img, roi, Rgb([20, 200, 20]));
+    }
+    save(&img, "window.png")?;
+    let mask = pipeline.segmenter().mask();
+    let img = RgbImage::from_fn(w, h, |x, y| {
+        let m = mask[(y * w + x) as usize];
+        let p = rgb.get_pixel(x, y).0;
+        if m != 0 {
+            Rgb(p)
+        } else {
+            Rgb(p.map(|c| c / 4))
+        }
+    });
+    save(&img, "mask.png")
+}
+
+fn heat_colour(v: f32) -> Rgb<u8> {
+    let v = v.clamp(0.0, 1.0);
+    // Dark blue through red to yellow.
+    let r = (255.0 * (1.5 * v).min(1.0)) as u8;
+    let g = (255.0 * (2.0 * v - 1.0).clamp(0.0, 1.0)) as u8;
+    let b = (255.0 * (0.5 - v).clamp(0.0, 0.5) * 1.2) as u8;
+    Rgb([r, g, b])
+}
+
+fn draw_rect(img: &mut RgbImage, r: Rect, c: Rgb<u8>) {
+    let (w, h) = img.dimensions();
+    let r = r.clamp_to(w, h);
+    if r.width == 0 || r.height == 0 {
+        return;
+    }
+    for t in 0..2u32 {
+        for x in r.x..r.x + r.width {
+            for y in [
+                r.y + t.min(r.height - 1),
+                r.y + r.height - 1 - t.min(r.height - 1),
+            ] {
+                img.put_pixel(x, y, c);
+            }
+        }
+        for y in r.y..r.y + r.height {
+            for x in [
+                r.x + t.min(r.width - 1),
+                r.x + r.width - 1 - t.min(r.width - 1),
+            ] {
+                img.put_pixel(x, y, c);
+            }
+        }
+    }
 }
 
 /// Arguments of `acch estimate`.
@@ -115,6 +237,10 @@ pub struct EstimateArgs {
     /// Plot the match-value response over the view index, θ slices marked.
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
+    /// Without --mask: write the recognition heat map, the window and the
+    /// mask as images into this folder.
+    #[arg(long, value_name = "DIR")]
+    debug_dir: Option<PathBuf>,
     /// Write the match-value response as CSV (view, theta_deg, phi_deg, match).
     #[arg(long, value_name = "FILE.csv")]
     csv: Option<PathBuf>,
@@ -122,7 +248,13 @@ pub struct EstimateArgs {
 
 /// Runs `acch estimate`.
 pub fn run(args: EstimateArgs) -> Result<()> {
-    let mut loaded = load_input(&args.input)?;
+    let Some(mut loaded) = load_input(&args.input, args.debug_dir.as_deref())? else {
+        println!(
+            "not found: no window of {} resembles the object",
+            args.input.image.display()
+        );
+        return Ok(());
+    };
     let refinement = if args.wta {
         Refinement::WinnerTakesAll
     } else {
@@ -140,6 +272,15 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         "theta {:.1} deg  phi {:.1} deg  match {:.4}  scale {:.3}",
         e.theta_deg, e.phi_deg, e.best_value, e.scale
     );
+    if let Some(model) = &loaded.confidence {
+        let r = model.rating(est.response(), est.slices(), est.database().views());
+        println!(
+            "confidence {:.3}  {} (threshold {})",
+            r.confidence,
+            if r.accepted { "accepted" } else { "rejected" },
+            model.threshold()
+        );
+    }
     println!("top 5 views:");
     for (rank, (i, m)) in est.top(5).into_iter().enumerate() {
         println!(

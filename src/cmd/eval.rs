@@ -28,6 +28,9 @@ pub const FAIL_PHI_DEG: f32 = 20.0;
 pub enum Protocol {
     /// Paper table 1: random poses, ground-truth masks, homogeneous background.
     Table1,
+    /// Paper table 2: textured backgrounds and clutter, recognition and
+    /// segmentation find the object, confidence network accepts or rejects.
+    Table2,
 }
 
 /// Arguments of `acch eval`.
@@ -38,9 +41,10 @@ pub struct EvalArgs {
     protocol: Protocol,
     #[command(flatten)]
     object: ObjectArgs,
-    /// Number of test images.
-    #[arg(long, default_value_t = 190)]
-    n: usize,
+    /// Number of test images (per background for table2); default 190
+    /// for table1, 50 for table2.
+    #[arg(long)]
+    n: Option<usize>,
     /// Seed of the scene and of the test poses (training views use seed 0).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -51,6 +55,9 @@ pub struct EvalArgs {
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+    /// table2: write the confidence reliability diagram (PNG).
+    #[arg(long, value_name = "FILE.png")]
+    reliability: Option<PathBuf>,
     /// Write every test image's truth, estimate and errors (first variant) as CSV.
     #[arg(long, value_name = "FILE.csv")]
     errors: Option<PathBuf>,
@@ -110,11 +117,20 @@ struct Variant {
 pub fn run(args: EvalArgs) -> Result<()> {
     match args.protocol {
         Protocol::Table1 => table1(&args),
+        Protocol::Table2 => super::table2::table2(
+            args.object.load()?,
+            args.n.unwrap_or(50),
+            args.seed,
+            &args.histogram.train_config()?,
+            args.json.as_deref(),
+            args.reliability.as_deref(),
+        ),
     }
 }
 
 fn table1(args: &EvalArgs) -> Result<()> {
-    if args.n == 0 {
+    let n = args.n.unwrap_or(190);
+    if n == 0 {
         bail!("--n must be at least 1");
     }
     let start = Instant::now();
@@ -123,7 +139,7 @@ fn table1(args: &EvalArgs) -> Result<()> {
     let renderer = common::renderer(object.clone(), "plain".parse::<Background>()?, args.seed);
     let grid: ViewSpec = PAPER_GRID.parse()?;
     let train_views = grid.views(DEFAULT_DISTANCE, 0);
-    let test_views = off_grid_random(&grid, args.n, args.seed);
+    let test_views = off_grid_random(&grid, n, args.seed);
     let train = common::render_views(&renderer, &train_views, 0, "train views");
     let test = common::render_views(&renderer, &test_views, args.seed, "test views");
 

@@ -20,7 +20,9 @@ pub struct FeaturesArgs {
 
 /// Runs `acch features`.
 pub fn run(args: FeaturesArgs) -> Result<()> {
-    let mut loaded = load_input(&args.input)?;
+    let Some(mut loaded) = load_input(&args.input, None)? else {
+        anyhow::bail!("{}: the object was not found", args.input.image.display());
+    };
     let pairs = loaded.respond();
     let params = loaded.estimator.database().params;
     let shape = [

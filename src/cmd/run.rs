@@ -4,8 +4,11 @@
 //! camera moving over the hemisphere, with its database trained on first use
 //! and cached.
 //!
-//! The stages run chained in this process (see `crate::pipeline`); the
-//! multi-process pipeline over shared memory replaces this loop when it lands.
+//! By default every stage runs as its own process (`acch stage NAME`),
+//! connected over iceoryx2 shared memory, with seeds and results published on
+//! zenoh (see `crate::stages` and `launch`). `--in-process` keeps the stages
+//! chained in this process (see `crate::pipeline`): the compute floor the
+//! pipeline's overhead is measured against.
 
 use super::common::{self, ObjectArgs};
 use crate::model;
@@ -27,32 +30,41 @@ const DEFAULT_CONFIDENCE_SCENES: usize = 80;
 #[derive(Args)]
 pub struct RunArgs {
     #[command(flatten)]
-    object: ObjectArgs,
+    pub(crate) object: ObjectArgs,
     /// View database; by default one is trained for the object on first use
     /// and cached (see --cache-dir).
     #[arg(long, value_name = "FILE.acchdb")]
-    db: Option<PathBuf>,
+    pub(crate) db: Option<PathBuf>,
     /// Where trained default databases are cached.
     #[arg(long, env = "ACCH_CACHE_DIR", value_name = "DIR")]
-    cache_dir: Option<PathBuf>,
+    pub(crate) cache_dir: Option<PathBuf>,
     /// Background of the simulated scene: plain, A, B, C, clutter, clutter-similar.
     #[arg(long, default_value = "A")]
-    background: Background,
-    /// Frames to process.
-    #[arg(long, default_value_t = 300)]
-    frames: u64,
-    /// Camera frame rate; 0 runs free (as fast as the stages go).
-    #[arg(long, default_value_t = 30.0)]
-    fps: f64,
+    pub(crate) background: Background,
+    /// Frames to process (default 300, or the configuration's).
+    #[arg(long)]
+    pub(crate) frames: Option<u64>,
+    /// Camera frame rate; 0 runs free (default 30, or the configuration's).
+    #[arg(long)]
+    pub(crate) fps: Option<f64>,
+    /// Pipeline configuration (TOML, see docs/pipeline.md).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) config: Option<PathBuf>,
+    /// Chain the stages in this process instead of one process per stage.
+    #[arg(long)]
+    pub(crate) in_process: bool,
+    /// Give up when no result arrives for this many seconds.
+    #[arg(long, default_value_t = 20.0)]
+    pub(crate) stall_timeout: f64,
     /// Seed of the camera trajectory and the scene.
     #[arg(long, default_value_t = 0)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// Print one line per frame.
     #[arg(long, short)]
-    verbose: bool,
+    pub(crate) verbose: bool,
     /// Write the summary as JSON.
     #[arg(long, value_name = "FILE")]
-    json: Option<PathBuf>,
+    pub(crate) json: Option<PathBuf>,
 }
 
 /// Latency percentiles of one stage, milliseconds.
@@ -118,16 +130,29 @@ struct Latency {
 
 /// Runs `acch run`.
 pub fn run(args: RunArgs) -> Result<()> {
-    if !(args.fps.is_finite() && args.fps >= 0.0) {
-        bail!("--fps {} must be a number >= 0", args.fps);
+    if args.in_process {
+        return run_in_process(args);
+    }
+    super::launch::run(args)
+}
+
+fn run_in_process(args: RunArgs) -> Result<()> {
+    let fps = args.fps.unwrap_or(30.0);
+    let frames = args.frames.unwrap_or(300);
+    if !(fps.is_finite() && fps >= 0.0) {
+        bail!("--fps {} must be a number >= 0", fps);
     }
     let object = args.object.load()?;
     let db = match &args.db {
         Some(path) => ViewDatabase::load(path)?,
         None => cached_database(&object, args.cache_dir.clone())?,
     };
-    let renderer = common::renderer(object.clone(), args.background.clone(), args.seed);
-    let trajectory = Trajectory::new(args.seed, if args.fps > 0.0 { args.fps } else { 30.0 }, DEFAULT_DISTANCE)?;
+    let renderer = common::renderer(object.clone(), args.background, args.seed);
+    let trajectory = Trajectory::new(
+        args.seed,
+        if fps > 0.0 { fps } else { 30.0 },
+        DEFAULT_DISTANCE,
+    )?;
     let mut frame = renderer.render(&trajectory.frame(0).view, 0);
     let (w, h) = frame.image.dimensions();
     let mut pipeline = Pipeline::new(db, w, h, Some(DEFAULT_DISTANCE as f32))?;
@@ -135,24 +160,33 @@ pub fn run(args: RunArgs) -> Result<()> {
         "acch run: {} on background {}, {} frames at {}, {} stages in one process",
         object.name(),
         args.background,
-        args.frames,
-        if args.fps > 0.0 { format!("{} fps", args.fps) } else { "free-running".into() },
-        if pipeline.confidence().is_some() { 5 } else { 4 },
+        frames,
+        if fps > 0.0 {
+            format!("{} fps", fps)
+        } else {
+            "free-running".into()
+        },
+        if pipeline.confidence().is_some() {
+            5
+        } else {
+            4
+        },
     );
 
-    let n = args.frames as usize;
+    let n = frames as usize;
     let mut times: [Vec<u64>; 6] = std::array::from_fn(|_| Vec::with_capacity(n));
-    let (mut found, mut estimated, mut accepted, mut acc_fail, mut all_fail) = (0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut found, mut estimated, mut accepted, mut acc_fail, mut all_fail) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
     let (mut sum_phi, mut sum_theta) = (0.0f64, 0.0f64);
     let bar = if args.verbose {
         indicatif::ProgressBar::hidden()
     } else {
-        common::progress(args.frames, "frames")
+        common::progress(frames, "frames")
     };
     let start = Instant::now();
-    for i in 0..args.frames {
-        if args.fps > 0.0 {
-            let due = start + Duration::from_secs_f64(i as f64 / args.fps);
+    for i in 0..frames {
+        if fps > 0.0 {
+            let due = start + Duration::from_secs_f64(i as f64 / fps);
             if let Some(wait) = due.checked_duration_since(Instant::now()) {
                 std::thread::sleep(wait);
             }
@@ -181,7 +215,9 @@ pub fn run(args: RunArgs) -> Result<()> {
                 phi_error(e.phi_deg, frame.truth.phi_deg as f32),
             )
         });
-        let failed = errors.is_none_or(|(dt, dp)| dt > super::eval::FAIL_THETA_DEG || dp > super::eval::FAIL_PHI_DEG);
+        let failed = errors.is_none_or(|(dt, dp)| {
+            dt > super::eval::FAIL_THETA_DEG || dp > super::eval::FAIL_PHI_DEG
+        });
         if let Some((dt, dp)) = errors {
             estimated += 1;
             all_fail += failed as u64;
@@ -200,14 +236,21 @@ pub fn run(args: RunArgs) -> Result<()> {
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
     let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
-    let [capture, recognition, segmentation, pose, confidence, processing] = times;
+    let [
+        capture,
+        recognition,
+        segmentation,
+        pose,
+        confidence,
+        processing,
+    ] = times;
     let pct = |mut v: Vec<u64>| Percentiles::of(&mut v);
     let summary = Summary {
         object: object.name().to_owned(),
         background: args.background.to_string(),
-        frames: args.frames,
-        fps_target: args.fps,
-        fps_achieved: args.frames as f64 / elapsed,
+        frames: frames,
+        fps_target: fps,
+        fps_achieved: frames as f64 / elapsed,
         found,
         estimated,
         accepted,
@@ -233,7 +276,10 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 fn frame_line(i: u64, frame: &Rendered, r: &FrameResult) -> String {
-    let truth = format!("truth θ {:5.1} φ {:5.1}", frame.truth.theta_deg, frame.truth.phi_deg);
+    let truth = format!(
+        "truth θ {:5.1} φ {:5.1}",
+        frame.truth.theta_deg, frame.truth.phi_deg
+    );
     match (r.estimate, r.rating) {
         (None, _) => format!("{i:5}  {truth}  not found"),
         (Some(e), rating) => format!(
@@ -242,7 +288,11 @@ fn frame_line(i: u64, frame: &Rendered, r: &FrameResult) -> String {
             e.phi_deg,
             e.best_value,
             match rating {
-                Some(c) => format!("conf {:.2} {}", c.confidence, if c.accepted { "accepted" } else { "rejected" }),
+                Some(c) => format!(
+                    "conf {:.2} {}",
+                    c.confidence,
+                    if c.accepted { "accepted" } else { "rejected" }
+                ),
                 None => "unrated".into(),
             },
             r.times.total_ns() as f64 / 1e6
@@ -262,7 +312,10 @@ fn print_summary(s: &Summary) {
         100.0 * s.accepted_failure_rate,
         100.0 * s.all_failure_rate
     );
-    println!("{:<14} {:>8} {:>8} {:>8} {:>8}", "latency (ms)", "p50", "p90", "p99", "max");
+    println!(
+        "{:<14} {:>8} {:>8} {:>8} {:>8}",
+        "latency (ms)", "p50", "p90", "p99", "max"
+    );
     let l = &s.latency;
     for (name, p) in [
         ("capture", &l.capture),
@@ -281,7 +334,18 @@ fn print_summary(s: &Summary) {
 
 /// The default database of a built-in object: trained on first use with the
 /// default settings and cached, so later runs start at once.
-fn cached_database(object: &std::sync::Arc<acch_capture::Object>, dir: Option<PathBuf>) -> Result<ViewDatabase> {
+fn cached_database(
+    object: &std::sync::Arc<acch_capture::Object>,
+    dir: Option<PathBuf>,
+) -> Result<ViewDatabase> {
+    cached_database_at(object, dir).map(|(db, _)| db)
+}
+
+/// [`cached_database`] and the file it is cached in.
+pub(crate) fn cached_database_at(
+    object: &std::sync::Arc<acch_capture::Object>,
+    dir: Option<PathBuf>,
+) -> Result<(ViewDatabase, PathBuf)> {
     let dir = dir
         .or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("acch")))
         .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
@@ -294,11 +358,15 @@ fn cached_database(object: &std::sync::Arc<acch_capture::Object>, dir: Option<Pa
     ));
     if path.exists() {
         match ViewDatabase::load(&path) {
-            Ok(db) => return Ok(db),
+            Ok(db) => return Ok((db, path)),
             Err(e) => eprintln!("acch run: retraining: cached database unusable: {e}"),
         }
     }
-    eprintln!("acch run: training the database of '{}' (first use; cached in {})", object.name(), path.display());
+    eprintln!(
+        "acch run: training the database of '{}' (first use; cached in {})",
+        object.name(),
+        path.display()
+    );
     let training = model::RenderedTraining {
         views: super::eval::PAPER_GRID.parse()?,
         background: Background::default(),
@@ -309,5 +377,5 @@ fn cached_database(object: &std::sync::Arc<acch_capture::Object>, dir: Option<Pa
     let db = model::train_object(object, &TrainConfig::default(), &training, confidence)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     db.save(&path)?;
-    Ok(db)
+    Ok((db, path))
 }

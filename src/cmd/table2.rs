@@ -18,15 +18,16 @@
 
 use super::common;
 use super::eval::{FAIL_PHI_DEG, FAIL_THETA_DEG, PAPER_GRID};
+use crate::model;
+use crate::pipeline::Pipeline;
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Intrinsics, Object, Rendered, Renderer, SceneConfig, ViewPose,
     ViewSpec,
 };
-use acch_core::IndexImage;
-use acch_pose::train::{LabelledView, TrainConfig, build_database, mask_bbox};
+use acch_confidence::{Kind, Model as ConfidenceModel};
+use acch_pose::train::{TrainConfig, mask_bbox};
 use acch_pose::{PoseEstimator, Refinement, phi_error};
-use acch_recognition::{Detector, RecognitionModel, RecognitionParams, SECTION};
-use acch_segmentation::Segmenter;
+use acch_recognition::RecognitionModel;
 use anyhow::{Context, Result, bail};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -63,6 +64,14 @@ pub struct Table2Row {
     pub failure_rate: f64,
     /// Images in which the object was not found.
     pub not_found: usize,
+    /// Share of images whose estimate the confidence network accepted.
+    pub accepted_rate: f64,
+    /// Mean |Δφ| over accepted estimates, degrees.
+    pub acc_mean_phi_err_deg: f64,
+    /// Mean |Δθ| over accepted estimates, degrees.
+    pub acc_mean_theta_err_deg: f64,
+    /// Failure rate among accepted estimates.
+    pub acc_failure_rate: f64,
     /// Failure rate with the scale taken from the segmented region.
     pub failure_rate_scale_from_roi: f64,
     /// Failure rate of the pose stage alone, with the true mask.
@@ -71,6 +80,8 @@ pub struct Table2Row {
     pub false_detections: usize,
     /// Median window score with the object in view.
     pub median_score: f64,
+    /// Lowest window score with the object in view.
+    pub min_score: f64,
     /// Highest window score with the object out of view.
     pub max_empty_score: f64,
     /// Mean time of recognition + segmentation of one frame, ms.
@@ -85,60 +96,97 @@ struct Table2Report {
     object: String,
     n: usize,
     rows: Vec<Table2Row>,
+    /// Both network inputs, over every estimate of every row.
+    confidence: Vec<ConfidenceSummary>,
+    confidence_threshold: f32,
     threshold: f32,
     train_score: f32,
-    ms_quantise: f64,
     ms_detect: f64,
     ms_segment: f64,
     train_seconds: f64,
     total_seconds: f64,
 }
 
+/// Confidence-network results over every estimate of the protocol, for one
+/// kind of network input.
+#[derive(Clone, Debug, Serialize)]
+pub struct ConfidenceSummary {
+    /// "features" (R_phi, D_phi, R_theta, D_theta) or "response" (the whole response).
+    pub input: String,
+    /// Area under the ROC curve of confidence against reliability.
+    pub roc_auc: f64,
+    /// Share of estimates accepted at the threshold.
+    pub accepted_rate: f64,
+    /// Failure rate among accepted estimates.
+    pub acc_failure_rate: f64,
+    /// Expected calibration error over 10 bins.
+    pub calibration_error: f64,
+}
+
 /// Runs the table-2 protocol for one object and prints the table; writes
-/// the report as JSON when `json` is given.
+/// the report as JSON when `json` is given and the confidence reliability
+/// diagram when `reliability` is given.
 pub fn table2(
     object: Arc<Object>,
     n: usize,
     seed: u64,
     config: &TrainConfig,
     json: Option<&Path>,
+    reliability: Option<&Path>,
 ) -> Result<()> {
     if n == 0 {
         bail!("--n must be at least 1");
     }
     let start = Instant::now();
-    let plain = common::renderer(object.clone(), Background::default(), seed);
-    let grid: ViewSpec = PAPER_GRID.parse()?;
-    let train = common::render_views(&plain, &grid.views(DEFAULT_DISTANCE, 0), 0, "train views");
-    let labelled: Vec<LabelledView> = train
-        .iter()
-        .map(|r| common::labelled(r, DEFAULT_DISTANCE))
-        .collect();
-    let mut db = build_database(object.name(), DEFAULT_DISTANCE as f32, &labelled, config)?;
-    let model = RecognitionModel::train(&labelled, &db.palette, &RecognitionParams::default())
-        .context("training the recognition model")?;
-    db.sections.insert(SECTION.to_owned(), model.to_bytes());
-    drop(train);
+    let training = model::RenderedTraining {
+        views: PAPER_GRID.parse()?,
+        background: Background::default(),
+        distance: DEFAULT_DISTANCE,
+        seed: 0,
+    };
+    let mut db = model::train_rendered(&object, config, &training)?;
+    // Both network inputs learn from the same scenes (seeds disjoint from
+    // the test scenes); the default one rates the rows.
+    let samples = model::confidence_samples(
+        &db,
+        &object,
+        model::DEFAULT_CONFIDENCE_SCENES,
+        model::CONFIDENCE_SEED_BASE,
+        DEFAULT_DISTANCE,
+    )?;
+    let mut alt_db = db.clone();
+    let alt_kind = match model::DEFAULT_CONFIDENCE_KIND {
+        Kind::Features => Kind::Response,
+        Kind::Response => Kind::Features,
+    };
+    model::train_confidence(&mut db, &samples, model::DEFAULT_CONFIDENCE_KIND, 0)?;
+    model::train_confidence(&mut alt_db, &samples, alt_kind, 0)?;
+    let alt_model = ConfidenceModel::load(&alt_db)?;
+    drop(alt_db);
+    let recognition = RecognitionModel::from_database(&db)?.context("recognition model")?;
     let train_seconds = start.elapsed().as_secs_f64();
-    let (threshold, train_score) = (model.threshold, model.train_score);
+    let (threshold, train_score) = (recognition.threshold, recognition.train_score);
 
     let intrinsics = Intrinsics::default();
     let (w, h) = (intrinsics.width, intrinsics.height);
-    let mut estimator = PoseEstimator::new(db)?;
-    let mut detector = Detector::new(model, w, h)?;
-    let mut segmenter = Segmenter::new(w, h)?;
-    let mut index = IndexImage::default();
+    let mut estimator = PoseEstimator::new(db.clone())?;
+    let mut pipeline = Pipeline::new(db, w, h, Some(DEFAULT_DISTANCE as f32))?;
+    let conf_threshold = pipeline.confidence().map_or(0.0, |m| m.threshold());
     let mut mask = vec![0u8; (w * h) as usize];
     let views = ViewSpec::Random { n }.views(DEFAULT_DISTANCE, seed);
     let scale = Some(estimator.scale_for_distance(DEFAULT_DISTANCE as f32));
-    let (mut t_quantise, mut t_detect, mut t_segment, mut frames) = (0f64, 0f64, 0f64, 0usize);
+    let (mut t_detect, mut t_segment, mut frames) = (0f64, 0f64, 0usize);
     let mut rows = Vec::new();
+    // (default confidence, alternative confidence, reliable) per estimate.
+    let mut rated: Vec<(f32, f32, bool)> = Vec::new();
     for (name, bg) in BACKGROUNDS {
         let background: Background = bg.parse()?;
         let scenes = render_scenes(&object, background, &views, seed, name)?;
         let (mut sum_iou, mut sum_phi, mut sum_theta) = (0f64, 0f64, 0f64);
         let (mut estimated, mut failures, mut roi_failures, mut true_failures) = (0, 0, 0, 0);
         let (mut not_found, mut false_detections) = (0, 0);
+        let (mut accepted, mut acc_failures, mut acc_phi, mut acc_theta) =
+            (0usize, 0usize, 0f64, 0f64);
         let (mut ms_sum, mut ms_max) = (0f64, 0f64);
         let (mut scores, mut max_empty) = (Vec::with_capacity(n), 0f32);
         for ((scene, empty), view) in scenes.iter().zip(&views) {
@@ -150,60 +198,71 @@ pub fn table2(
                 None => true,
             };
             // The object out of view: any detection is a false one.
-            estimator
-                .database()
-                .palette
-                .quantise_into(empty.image.as_raw(), w, h, &mut index);
-            if detector.detect(&index, scale).is_some() {
+            if pipeline
+                .process(empty.image.as_raw(), w, h)
+                .detection
+                .is_some()
+            {
                 false_detections += 1;
             }
-            max_empty = max_empty.max(detector.best_score());
+            max_empty = max_empty.max(pipeline.detector().best_score());
 
-            let t0 = Instant::now();
-            estimator
-                .database()
-                .palette
-                .quantise_into(scene.image.as_raw(), w, h, &mut index);
-            let t1 = Instant::now();
-            let detection = detector.detect(&index, scale);
-            let t2 = Instant::now();
-            let segment = detection.and_then(|d| segmenter.segment(&index, &detector, &d));
-            let t3 = Instant::now();
-            let roi = segment.map(|s| {
-                mask.copy_from_slice(s.mask);
-                s.roi
-            });
-            t_quantise += (t1 - t0).as_secs_f64();
-            t_detect += (t2 - t1).as_secs_f64();
-            t_segment += (t3 - t2).as_secs_f64();
+            let result = pipeline.process(scene.image.as_raw(), w, h);
+            t_detect += result.times.recognition_ns as f64 / 1e9;
+            t_segment += result.times.segmentation_ns as f64 / 1e9;
             frames += 1;
-            let ms = (t3 - t1).as_secs_f64() * 1e3;
+            let ms = (result.times.recognition_ns + result.times.segmentation_ns) as f64 / 1e6;
             ms_sum += ms;
             ms_max = ms_max.max(ms);
-            scores.push(detector.best_score());
+            scores.push(pipeline.detector().best_score());
 
             let truth = scene.mask.as_raw();
+            let index = pipeline.index_image();
             if let Some(true_roi) = mask_bbox(truth, w, h) {
-                let e = estimator.estimate(&index, Some(truth), true_roi, scale, Refinement::Parabolic);
+                let e =
+                    estimator.estimate(index, Some(truth), true_roi, scale, Refinement::Parabolic);
                 true_failures += fails(e) as usize;
             } else {
                 true_failures += 1;
             }
-            let Some(roi) = roi else {
+            let Some(roi) = result.roi else {
                 not_found += 1;
                 failures += 1;
                 roi_failures += 1;
                 continue;
             };
+            mask.copy_from_slice(pipeline.segmenter().mask());
             sum_iou += iou(&mask, truth);
-            let e = estimator.estimate(&index, Some(&mask), roi, scale, Refinement::Parabolic);
-            failures += fails(e) as usize;
+            let e = result.estimate;
+            let failed = fails(e);
+            failures += failed as usize;
             if let Some(e) = e {
-                sum_phi += phi_error(e.phi_deg, view.phi_deg as f32) as f64;
-                sum_theta += (e.theta_deg - view.theta_deg as f32).abs() as f64;
+                let (dphi, dtheta) = (
+                    phi_error(e.phi_deg, view.phi_deg as f32) as f64,
+                    (e.theta_deg - view.theta_deg as f32).abs() as f64,
+                );
+                sum_phi += dphi;
+                sum_theta += dtheta;
                 estimated += 1;
+                if let Some(r) = result.rating {
+                    let est = pipeline.estimator();
+                    let alt = alt_model.rate(est.response(), est.slices(), est.database().views());
+                    rated.push((r.confidence, alt, !failed));
+                    if r.accepted {
+                        accepted += 1;
+                        acc_failures += failed as usize;
+                        acc_phi += dphi;
+                        acc_theta += dtheta;
+                    }
+                }
             }
-            let e = estimator.estimate(&index, Some(&mask), roi, None, Refinement::Parabolic);
+            let e = estimator.estimate(
+                pipeline.index_image(),
+                Some(&mask),
+                roi,
+                None,
+                Refinement::Parabolic,
+            );
             roi_failures += fails(e) as usize;
         }
         scores.sort_by(f32::total_cmp);
@@ -216,14 +275,62 @@ pub fn table2(
             mean_theta_err_deg: sum_theta / estimated.max(1) as f64,
             failure_rate: failures as f64 / nn,
             not_found,
+            accepted_rate: accepted as f64 / nn,
+            acc_mean_phi_err_deg: acc_phi / accepted.max(1) as f64,
+            acc_mean_theta_err_deg: acc_theta / accepted.max(1) as f64,
+            acc_failure_rate: acc_failures as f64 / accepted.max(1) as f64,
             failure_rate_scale_from_roi: roi_failures as f64 / nn,
             failure_rate_true_mask: true_failures as f64 / nn,
             false_detections,
             median_score: scores[scores.len() / 2] as f64,
+            min_score: scores[0] as f64,
             max_empty_score: max_empty as f64,
             ms_detect_segment: ms_sum / nn,
             max_ms_detect_segment: ms_max,
         });
+    }
+
+    let labels: Vec<bool> = rated.iter().map(|r| r.2).collect();
+    let summarise = |input: &str, scores: &[f32]| {
+        let acceptance = acch_confidence::Acceptance::new(scores, &labels, conf_threshold);
+        ConfidenceSummary {
+            input: input.to_owned(),
+            roc_auc: acch_confidence::roc_auc(scores, &labels),
+            accepted_rate: acceptance.acceptance_rate(),
+            acc_failure_rate: acceptance.accepted_failure_rate(),
+            calibration_error: acch_confidence::expected_calibration_error(
+                &acch_confidence::reliability_bins(scores, &labels, 10),
+            ),
+        }
+    };
+    let main_scores: Vec<f32> = rated.iter().map(|r| r.0).collect();
+    let alt_scores: Vec<f32> = rated.iter().map(|r| r.1).collect();
+    let (main_name, alt_name) = (
+        kind_name(model::DEFAULT_CONFIDENCE_KIND),
+        kind_name(alt_kind),
+    );
+    let confidence = vec![
+        summarise(main_name, &main_scores),
+        summarise(alt_name, &alt_scores),
+    ];
+    if let Some(path) = reliability {
+        crate::plot::reliability_diagram(
+            path,
+            &format!(
+                "{}: confidence reliability (table2 estimates)",
+                object.name()
+            ),
+            &[
+                (
+                    main_name,
+                    &acch_confidence::reliability_bins(&main_scores, &labels, 10),
+                ),
+                (
+                    alt_name,
+                    &acch_confidence::reliability_bins(&alt_scores, &labels, 10),
+                ),
+            ],
+        )?;
     }
 
     let frames = frames.max(1) as f64;
@@ -232,9 +339,10 @@ pub fn table2(
         object: object.name().to_owned(),
         n,
         rows,
+        confidence,
+        confidence_threshold: conf_threshold,
         threshold,
         train_score,
-        ms_quantise: 1e3 * t_quantise / frames,
         ms_detect: 1e3 * t_detect / frames,
         ms_segment: 1e3 * t_segment / frames,
         train_seconds,
@@ -250,16 +358,30 @@ pub fn table2(
 
 fn print_report(r: &Table2Report) {
     println!(
-        "table2 · {} · {} random poses per background · recognition threshold {:.3} (training score {:.3})",
-        r.object, r.n, r.threshold, r.train_score
+        "table2 · {} · {} random poses per background · recognition threshold {:.3} (training score {:.3}) · confidence threshold {}",
+        r.object, r.n, r.threshold, r.train_score, r.confidence_threshold
     );
     println!(
-        "{:<10} {:>4} {:>6} {:>9} {:>9} {:>9} {:>6} {:>10} {:>10} {:>7} {:>7}",
-        "background", "n", "IoU", "E(phi)", "E(theta)", "failures", "lost", "fail(roi)", "fail(true)", "false+", "ms"
+        "{:<10} {:>4} {:>6} {:>8} {:>8} {:>8} {:>5} | {:>8} {:>8} {:>8} {:>8} | {:>9} {:>9} {:>6} {:>6}",
+        "background",
+        "n",
+        "IoU",
+        "E(phi)",
+        "E(theta)",
+        "fail",
+        "lost",
+        "E(phi)",
+        "E(theta)",
+        "fail",
+        "accept",
+        "fail(roi)",
+        "fail(true)",
+        "false+",
+        "ms"
     );
     for row in &r.rows {
         println!(
-            "{:<10} {:>4} {:>6.3} {:>8.2}° {:>8.2}° {:>8.1}% {:>6} {:>9.1}% {:>9.1}% {:>7} {:>7.2}",
+            "{:<10} {:>4} {:>6.3} {:>7.2}° {:>7.2}° {:>7.1}% {:>5} | {:>7.2}° {:>7.2}° {:>7.1}% {:>7.1}% | {:>8.1}% {:>8.1}% {:>6} {:>6.2}",
             row.background,
             row.n,
             row.iou,
@@ -267,18 +389,47 @@ fn print_report(r: &Table2Report) {
             row.mean_theta_err_deg,
             100.0 * row.failure_rate,
             row.not_found,
+            row.acc_mean_phi_err_deg,
+            row.acc_mean_theta_err_deg,
+            100.0 * row.acc_failure_rate,
+            100.0 * row.accepted_rate,
             100.0 * row.failure_rate_scale_from_roi,
             100.0 * row.failure_rate_true_mask,
             row.false_detections,
             row.ms_detect_segment,
         );
     }
+    for c in &r.confidence {
+        println!(
+            "confidence from {:<8}: ROC AUC {:.3}, accepted {:.1} %, failures among accepted {:.1} %, calibration error {:.3}",
+            c.input,
+            c.roc_auc,
+            100.0 * c.accepted_rate,
+            100.0 * c.acc_failure_rate,
+            c.calibration_error
+        );
+    }
     println!(
-        "per frame: quantise {:.2} ms, recognition {:.2} ms, segmentation {:.2} ms · training {:.1} s, total {:.1} s",
-        r.ms_quantise, r.ms_detect, r.ms_segment, r.train_seconds, r.total_seconds
+        "per frame: recognition (incl. quantise) {:.2} ms, segmentation {:.2} ms · training {:.1} s, total {:.1} s",
+        r.ms_detect, r.ms_segment, r.train_seconds, r.total_seconds
+    );
+    let min_in = r
+        .rows
+        .iter()
+        .map(|x| x.min_score)
+        .fold(f64::INFINITY, f64::min);
+    let max_out = r.rows.iter().map(|x| x.max_empty_score).fold(0.0, f64::max);
+    let max_ms = r
+        .rows
+        .iter()
+        .map(|x| x.max_ms_detect_segment)
+        .fold(0.0, f64::max);
+    println!(
+        "window scores: object in view >= {min_in:.3}, out of view <= {max_out:.3} (threshold {:.3}) · slowest recognition + segmentation {max_ms:.2} ms",
+        r.threshold
     );
     println!(
-        "lost = not found; fail(roi) = scale from the segmented region; fail(true) = true mask; false+ = detections with the object out of view"
+        "left: all estimates; right of |: accepted by the confidence network. lost = not found; fail(roi) = scale from the segmented region; fail(true) = true mask; false+ = detections with the object out of view"
     );
 }
 
@@ -293,7 +444,8 @@ fn render_scenes(
     name: &str,
 ) -> Result<Vec<(Rendered, Rendered)>> {
     let bar = common::progress(views.len() as u64, &format!("background {name}"));
-    let shared = (!background.has_clutter()).then(|| common::renderer(object.clone(), background, seed));
+    let shared =
+        (!background.has_clutter()).then(|| common::renderer(object.clone(), background, seed));
     let mut far = Intrinsics::default();
     far.cx += OUT_OF_VIEW_PX;
     let out = views
@@ -326,6 +478,13 @@ fn render_scenes(
     Ok(out)
 }
 
+fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Features => "features",
+        Kind::Response => "response",
+    }
+}
+
 /// Intersection over union of two masks (non-zero = set).
 fn iou(a: &[u8], b: &[u8]) -> f64 {
     let (mut inter, mut union) = (0u64, 0u64);
@@ -334,5 +493,9 @@ fn iou(a: &[u8], b: &[u8]) -> f64 {
         inter += (x && y) as u64;
         union += (x || y) as u64;
     }
-    if union == 0 { 0.0 } else { inter as f64 / union as f64 }
+    if union == 0 {
+        0.0
+    } else {
+        inter as f64 / union as f64
+    }
 }

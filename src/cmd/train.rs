@@ -35,11 +35,11 @@ pub struct TrainArgs {
     histogram: HistogramArgs,
     /// Confidence network: random-pose scenes rendered per background (plain,
     /// A, B, C, clutter, clutter-similar) to train it on; 0 leaves it out.
-    #[arg(long, default_value_t = 80)]
+    #[arg(long, default_value_t = model::DEFAULT_CONFIDENCE_SCENES)]
     confidence_scenes: usize,
     /// Confidence network input: the four response features, or the whole
     /// response.
-    #[arg(long, value_enum, default_value = "features")]
+    #[arg(long, value_enum, default_value = "response")]
     confidence_input: ConfidenceInput,
     /// Output database file.
     #[arg(long, value_name = "FILE.acchdb")]
@@ -74,7 +74,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
             let object = args.object.load()?;
             let training = model::RenderedTraining {
                 views: args.views.clone(),
-                background: args.background.clone(),
+                background: args.background,
                 distance: args.distance,
                 seed: args.seed,
             };

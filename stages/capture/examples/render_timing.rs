@@ -4,9 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use acch_capture::{
-    Background, DEFAULT_DISTANCE, Effects, Object, Rendered, Renderer, SceneConfig, ViewSpec,
-};
+use acch_capture::{DEFAULT_DISTANCE, Effects, Object, Rendered, Renderer, SceneConfig, ViewSpec};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let views = ViewSpec::training_grid().views(DEFAULT_DISTANCE, 0);
@@ -53,6 +51,5 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
-    let _ = Background::default();
     Ok(())
 }

@@ -507,7 +507,8 @@ fn fruitbox() -> Object {
 }
 
 /// A drink can, radius 0.35 and height 1.0 before normalisation, whose label
-/// has four different panels around the circumference.
+/// has four different panels around the circumference, and whose plain lid
+/// has a pull tab and an opening.
 fn can() -> Object {
     let (r, h) = (0.35f32, 1.0f32);
     let circumference = std::f32::consts::TAU * r;
@@ -537,8 +538,19 @@ fn can() -> Object {
     label.rect(0.0, 0.0, 1.0, 0.05, SILVER);
     label.rect(0.0, 0.95, 1.0, 1.0, SILVER);
 
+    // An unprinted lid, but with a real can's pull tab and opening: a
+    // featureless disc would leave φ unobservable from above (θ > ~80°).
     let mut lid = Canvas::new(128, 128, SILVER);
     lid.ring(0.5, 0.5, 0.41, 0.46, [140, 140, 148]);
+    let (opening, tab, hole) = ([52, 50, 56], [150, 150, 160], [88, 88, 96]);
+    lid.bar((0.42, 0.2), (0.58, 0.2), 0.1, opening);
+    lid.disc(0.42, 0.2, 0.05, opening);
+    lid.disc(0.58, 0.2, 0.05, opening);
+    lid.bar((0.5, 0.3), (0.5, 0.66), 0.17, tab);
+    lid.disc(0.5, 0.3, 0.085, tab);
+    lid.disc(0.5, 0.66, 0.085, tab);
+    lid.disc(0.5, 0.58, 0.045, hole);
+    lid.disc(0.5, 0.42, 0.03, hole);
 
     let mut b = MeshBuilder::new();
     let side = b.texture(label.into_texture(true));

@@ -283,6 +283,7 @@ pub(crate) fn draw_table(
     /// Pixels per run sharing one mip level (the footprint varies slowly).
     const SPAN: usize = 16;
     let shade = AMBIENT + DIFFUSE * light_world().z.max(0.0) as f32;
+    let shade_q8 = (shade * 256.0).round() as u64;
     let (right, down, fwd) = (
         world_from_cam.x_axis,
         world_from_cam.y_axis,
@@ -340,12 +341,11 @@ pub(crate) fn draw_table(
                 let t = num * inv;
                 let col = if dz < -1e-9 && num < 0.0 && t * t * (q0 + x * (q1 + x * q2)) < FAR * FAR
                 {
-                    let s = lvl.sample(
+                    lvl.sample_repeat_q8(
                         ((ax + bx * x) * inv) as f32,
                         ((ay + by * x) * inv) as f32,
-                        true,
-                    );
-                    s.map(|v| (v * shade + 0.5).min(255.0) as u8)
+                        shade_q8,
+                    )
                 } else {
                     wall
                 };

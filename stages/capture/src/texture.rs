@@ -46,6 +46,39 @@ impl Level {
         }
         out
     }
+
+    /// Bilinear sample with wrap-around, multiplied by `shade_q8 / 256` and
+    /// rounded to bytes, in 8-bit fixed point: the three channels ride in
+    /// 21-bit lanes of one u64 so each lerp is two multiplies. About twice
+    /// as fast as [`Level::sample`]; used for the table, which covers most
+    /// pixels.
+    #[inline(always)]
+    pub fn sample_repeat_q8(&self, u: f32, v: f32, shade_q8: u64) -> [u8; 3] {
+        const LANE: u64 = (0xff) | (0xff << 21) | (0xff << 42);
+        const HALF: u64 = (0x80) | (0x80 << 21) | (0x80 << 42);
+        let (w, h) = (self.w as i32, self.h as i32);
+        // Texel-space position in 1/256 texel; +512 keeps it positive so
+        // the shift below floors.
+        let x = (((u - fast_floor(u)) * w as f32 - 0.5) * 256.0) as i32 + 512;
+        let y = (((v - fast_floor(v)) * h as f32 - 0.5) * 256.0) as i32 + 512;
+        let (fx, fy) = ((x & 255) as u64, (y & 255) as u64);
+        let (x0, x1) = texel_pair((x >> 8) - 2, w, true);
+        let (y0, y1) = texel_pair((y >> 8) - 2, h, true);
+        let spread = |t: [u8; 3]| t[0] as u64 | (t[1] as u64) << 21 | (t[2] as u64) << 42;
+        let (r0, r1) = (y0 * self.w as usize, y1 * self.w as usize);
+        let a = spread(self.data[r0 + x0]);
+        let b = spread(self.data[r0 + x1]);
+        let c = spread(self.data[r1 + x0]);
+        let d = spread(self.data[r1 + x1]);
+        let top = ((a * (256 - fx) + b * fx + HALF) >> 8) & LANE;
+        let bottom = ((c * (256 - fx) + d * fx + HALF) >> 8) & LANE;
+        let m = ((top * (256 - fy) + bottom * fy + HALF) >> 8) & LANE;
+        // Each shaded lane stays below 2^17, so lanes are read before the
+        // final shift (shifting the whole word would spill lane k+1 into k).
+        let s = m * shade_q8 + HALF;
+        let lane = |k: u32| (((s >> (21 * k)) & 0x1f_ffff) >> 8).min(255) as u8;
+        [lane(0), lane(1), lane(2)]
+    }
 }
 
 /// `x.floor()` without the libm call (x86-64 baseline has no SSE4.1 round);
@@ -136,5 +169,48 @@ impl Texture {
     #[inline]
     pub fn level(&self, i: usize) -> &Level {
         &self.levels[i.min(self.levels.len() - 1)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::noise::hash2;
+
+    #[test]
+    fn fixed_point_sampler_matches_float_sampler() {
+        let (w, h) = (37u32, 23u32);
+        let data: Vec<[u8; 3]> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as i32, (i / w) as i32);
+                [0, 1, 2].map(|c| (hash2(x, y, c) * 256.0) as u8)
+            })
+            .collect();
+        let tex = Texture::new(w, h, data, true);
+        let level = tex.level(0);
+        for shade in [0.45f32, 0.99, 1.05] {
+            let q8 = (shade * 256.0).round() as u64;
+            for i in 0..2000 {
+                let u = hash2(i, 0, 9) * 6.0 - 3.0;
+                let v = hash2(i, 1, 9) * 6.0 - 3.0;
+                let f = level
+                    .sample(u, v, true)
+                    .map(|c| (c * q8 as f32 / 256.0).min(255.0));
+                let q = level.sample_repeat_q8(u, v, q8);
+                for c in 0..3 {
+                    assert!(
+                        (f[c] - q[c] as f32).abs() <= 2.5,
+                        "({u}, {v}) shade {shade}: {f:?} vs {q:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fast_floor_matches_floor() {
+        for x in [-3.5f32, -1.0, -0.25, 0.0, 0.25, 1.0, 2.999, 1e6 + 0.5] {
+            assert_eq!(fast_floor(x), x.floor(), "{x}");
+        }
     }
 }

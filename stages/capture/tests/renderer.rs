@@ -584,3 +584,12 @@ fn every_fruitbox_view_is_distinct_and_centred() {
         }
     }
 }
+
+#[test]
+fn renderer_and_outputs_can_cross_threads() {
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<Renderer>();
+    assert_send_sync::<acch_capture::Rendered>();
+    assert_send_sync::<Object>();
+    assert_send_sync::<acch_capture::Trajectory>();
+}

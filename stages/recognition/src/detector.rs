@@ -301,7 +301,11 @@ impl Detector {
             for y in y_lo..y_hi {
                 let row = &data[y * w..(y + 1) * w];
                 // The last rows have no pair below: an empty slice.
-                let down: &[u8] = if y + d < h { &data[(y + d) * w..(y + d + 1) * w] } else { &[] };
+                let down: &[u8] = if y + d < h {
+                    &data[(y + d) * w..(y + d + 1) * w]
+                } else {
+                    &[]
+                };
                 for (cx, counts) in cells.chunks_exact_mut(nf).enumerate() {
                     let x_lo = cx * cell;
                     let x_hi = (x_lo + cell).min(w);
@@ -363,10 +367,14 @@ impl Detector {
     }
 
     /// Scans the prepared frame with windows sized for `scale` (apparent
-    /// size relative to training; 1 at the training distance) and returns
-    /// the best window if its score reaches the threshold.
+    /// size relative to training; 1 at the training distance; invalid
+    /// values count as 1) and returns the best window if its score reaches
+    /// the threshold. `None` also before any frame was prepared.
     pub fn scan(&mut self, scale: f32) -> Option<Detection> {
-        assert!(self.prepared, "Detector::scan before Detector::prepare");
+        if !self.prepared {
+            self.best = 0.0;
+            return None;
+        }
         let scale = if scale.is_finite() && scale > 0.0 {
             scale
         } else {
@@ -447,7 +455,8 @@ impl Detector {
             }
         }
         self.best = best.0.max(0.0);
-        if !(best.0 >= self.model.threshold) || best.1.is_empty() {
+        // best.0 is -inf when no window was scored.
+        if best.0 < self.model.threshold || best.1.is_empty() {
             return None;
         }
         let cells = best.1;

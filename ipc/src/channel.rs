@@ -1,0 +1,290 @@
+//! iceoryx2 services of one pipeline run: a `[u8]` payload with a
+//! `#[repr(C)]` user header, plus an event service per data service so a
+//! consumer sleeps until its input arrives.
+
+use crate::IpcError;
+use crate::msg::{FrameHeader, ResultMsg, StageId};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use std::collections::VecDeque;
+use std::fmt::Debug;
+use std::time::Duration;
+
+/// The iceoryx2 service flavour (inter-process, ports stay on one thread).
+pub type Svc = ipc::Service;
+
+/// A received frame: header + pixels, borrowed from shared memory.
+pub type FrameSample = Sample<Svc, [u8], FrameHeader>;
+/// A received stage result: header + the stage's payload (mask, response).
+pub type ResultSample = Sample<Svc, [u8], ResultMsg>;
+
+/// Sizes of the services (shared memory is sized from them up front).
+#[derive(Clone, Copy, Debug)]
+pub struct Qos {
+    /// Frames a stage keeps to look pixels up by sequence.
+    pub frame_history: usize,
+    /// Largest frame payload, bytes.
+    pub max_frame_bytes: usize,
+}
+
+/// Subscribers of the frame service: recognition, segmentation, pose and
+/// one spare (a viewer or recorder).
+const FRAME_SUBSCRIBERS: usize = 4;
+/// Subscribers of a result service: the next stage, the launcher, one spare.
+const RESULT_SUBSCRIBERS: usize = 3;
+/// Result samples queued per subscriber before the oldest is dropped.
+const RESULT_BUFFER: usize = 8;
+
+/// Names of the services of one run; `instance` keeps concurrent runs apart.
+#[derive(Clone, Debug)]
+pub struct Names {
+    instance: String,
+}
+
+impl Names {
+    /// Services of run `instance` (the launcher's pid).
+    pub fn new(instance: &str) -> Self {
+        Names {
+            instance: instance.to_owned(),
+        }
+    }
+
+    fn name(&self, what: &str) -> Result<ServiceName, IpcError> {
+        let s = format!("acch/{}/{what}", self.instance);
+        ServiceName::new(&s).map_err(|e| IpcError::Iceoryx(format!("service name {s}: {e:?}")))
+    }
+}
+
+fn err<E: Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
+    move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
+}
+
+/// One process's handle on iceoryx2.
+pub struct Ipc {
+    node: Node<Svc>,
+    names: Names,
+    qos: Qos,
+}
+
+impl Ipc {
+    /// Creates this process's node.
+    pub fn new(names: Names, node_name: &str, qos: Qos) -> Result<Self, IpcError> {
+        let node = NodeBuilder::new()
+            .name(&NodeName::new(node_name).map_err(err("node name"))?)
+            .create::<Svc>()
+            .map_err(err("creating the node"))?;
+        Ok(Ipc { node, names, qos })
+    }
+
+    /// False once the process was asked to terminate (SIGINT, SIGTERM).
+    pub fn keep_running(&self) -> bool {
+        self.node.wait(Duration::ZERO).is_ok()
+    }
+
+    fn frame_service(
+        &self,
+    ) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], FrameHeader>, IpcError> {
+        let h = self.qos.frame_history.max(1);
+        self.node
+            .service_builder(&self.names.name("frames")?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<FrameHeader>()
+            .enable_safe_overflow(true)
+            .history_size(0)
+            .subscriber_max_buffer_size(h)
+            .subscriber_max_borrowed_samples(h + 1)
+            .max_subscribers(FRAME_SUBSCRIBERS)
+            .max_publishers(1)
+            .open_or_create()
+            .map_err(err("frame service"))
+    }
+
+    fn result_service(
+        &self,
+        stage: StageId,
+    ) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ResultMsg>, IpcError> {
+        self.node
+            .service_builder(&self.names.name(stage.name())?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<ResultMsg>()
+            .enable_safe_overflow(true)
+            .history_size(0)
+            .subscriber_max_buffer_size(RESULT_BUFFER)
+            .subscriber_max_borrowed_samples(2)
+            .max_subscribers(RESULT_SUBSCRIBERS)
+            .max_publishers(1)
+            .open_or_create()
+            .map_err(err("result service"))
+    }
+
+    fn event(&self, what: &str) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
+        self.node
+            .service_builder(&self.names.name(&format!("{what}/event"))?)
+            .event()
+            .max_listeners(8)
+            .max_notifiers(8)
+            .open_or_create()
+            .map_err(err("event service"))
+    }
+
+    /// The frame publisher (capture).
+    pub fn frame_output(&self) -> Result<Output<FrameHeader>, IpcError> {
+        let publisher = self
+            .frame_service()?
+            .publisher_builder()
+            .initial_max_slice_len(self.qos.max_frame_bytes)
+            .max_loaned_samples(1)
+            .create()
+            .map_err(err("frame publisher"))?;
+        let notifier = self.event("frames")?.notifier_builder().create().map_err(err("frame notifier"))?;
+        Ok(Output { publisher, notifier })
+    }
+
+    /// A frame subscriber; `wake` = also listen for the frame event.
+    pub fn frame_input(&self, wake: bool) -> Result<Input<FrameHeader>, IpcError> {
+        let subscriber = self.frame_service()?.subscriber_builder().create().map_err(err("frame subscriber"))?;
+        let listener = if wake {
+            Some(self.event("frames")?.listener_builder().create().map_err(err("frame listener"))?)
+        } else {
+            None
+        };
+        Ok(Input { subscriber, listener })
+    }
+
+    /// The result publisher of `stage`, payloads up to `max_payload` bytes.
+    pub fn result_output(&self, stage: StageId, max_payload: usize) -> Result<Output<ResultMsg>, IpcError> {
+        let publisher = self
+            .result_service(stage)?
+            .publisher_builder()
+            .initial_max_slice_len(max_payload.max(1))
+            .max_loaned_samples(1)
+            .create()
+            .map_err(err("result publisher"))?;
+        let notifier = self
+            .event(stage.name())?
+            .notifier_builder()
+            .create()
+            .map_err(err("result notifier"))?;
+        Ok(Output { publisher, notifier })
+    }
+
+    /// A subscriber to `stage`'s results that sleeps on its event.
+    pub fn result_input(&self, stage: StageId) -> Result<Input<ResultMsg>, IpcError> {
+        let subscriber = self
+            .result_service(stage)?
+            .subscriber_builder()
+            .create()
+            .map_err(err("result subscriber"))?;
+        let listener = Some(
+            self.event(stage.name())?
+                .listener_builder()
+                .create()
+                .map_err(err("result listener"))?,
+        );
+        Ok(Input { subscriber, listener })
+    }
+
+    /// Notifier of the control event `what` ("ready", "start").
+    pub fn control_notifier(&self, what: &str) -> Result<Notifier<Svc>, IpcError> {
+        self.event(what)?.notifier_builder().create().map_err(err("control notifier"))
+    }
+
+    /// Listener of the control event `what`.
+    pub fn control_listener(&self, what: &str) -> Result<Listener<Svc>, IpcError> {
+        self.event(what)?.listener_builder().create().map_err(err("control listener"))
+    }
+}
+
+/// Publishes a header + `[u8]` payload and wakes the consumers.
+pub struct Output<H: Debug + ZeroCopySend + 'static> {
+    publisher: Publisher<Svc, [u8], H>,
+    notifier: Notifier<Svc>,
+}
+
+impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
+    /// Loans `payload.len()` bytes of shared memory, copies `payload` in
+    /// (the one write of these bytes), lets `fill` set the header (given the
+    /// payload's address in this process), sends and notifies. Returns the
+    /// number of subscribers reached.
+    pub fn send(&self, payload: &[u8], fill: impl FnOnce(&mut H, usize)) -> Result<usize, IpcError> {
+        let mut sample = self.publisher.loan_slice_uninit(payload.len()).map_err(err("loan"))?;
+        let dst = sample.payload_mut();
+        let addr = dst.as_ptr() as usize;
+        // SAFETY: dst has exactly payload.len() bytes; u8 has no invalid values.
+        unsafe { std::ptr::copy_nonoverlapping(payload.as_ptr(), dst.as_mut_ptr().cast::<u8>(), payload.len()) };
+        // SAFETY: every byte was written above.
+        let mut sample = unsafe { sample.assume_init() };
+        fill(sample.user_header_mut(), addr);
+        let n = sample.send().map_err(err("send"))?;
+        self.notifier.notify().map_err(err("notify"))?;
+        Ok(n)
+    }
+}
+
+/// Receives header + payload samples; sleeps on the event when it has one.
+pub struct Input<H: Debug + ZeroCopySend + 'static> {
+    subscriber: Subscriber<Svc, [u8], H>,
+    listener: Option<Listener<Svc>>,
+}
+
+impl<H: Debug + ZeroCopySend + 'static> Input<H> {
+    /// Blocks until the input's event fires or `timeout` passes (a timeout
+    /// lets the caller check for termination); drains the pending events.
+    pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        if let Some(l) = &self.listener {
+            l.timed_wait(|_| {}, timeout).map_err(err("wait"))?;
+        }
+        Ok(())
+    }
+
+    /// The next queued sample, if any.
+    pub fn receive(&self) -> Result<Option<Sample<Svc, [u8], H>>, IpcError> {
+        self.subscriber.receive().map_err(err("receive"))
+    }
+}
+
+/// The last frames received, so a stage can read the pixels of frame N when
+/// its upstream result for N arrives. Holds the samples themselves (shared
+/// memory, no copy); the oldest is released when a newer one comes in.
+pub struct FrameHistory {
+    frames: VecDeque<FrameSample>,
+    capacity: usize,
+    /// Frames released without having been looked up.
+    pub dropped: u64,
+}
+
+impl FrameHistory {
+    /// Up to `capacity` frames (the frame service's borrow limit is one more).
+    pub fn new(capacity: usize) -> Self {
+        FrameHistory {
+            frames: VecDeque::with_capacity(capacity.max(1)),
+            capacity: capacity.max(1),
+            dropped: 0,
+        }
+    }
+
+    /// Moves every queued frame of `input` into the history.
+    pub fn pull(&mut self, input: &Input<FrameHeader>) -> Result<(), IpcError> {
+        while let Some(s) = input.receive()? {
+            if self.frames.len() == self.capacity {
+                self.frames.pop_front();
+                self.dropped += 1;
+            }
+            self.frames.push_back(s);
+        }
+        Ok(())
+    }
+
+    /// Frame `sequence`, pulling newly arrived frames first; releases older frames.
+    pub fn get(&mut self, input: &Input<FrameHeader>, sequence: u64) -> Result<Option<&FrameSample>, IpcError> {
+        self.pull(input)?;
+        while self.frames.front().is_some_and(|f| f.user_header().sequence < sequence) {
+            self.frames.pop_front();
+        }
+        Ok(self.frames.front().filter(|f| f.user_header().sequence == sequence))
+    }
+}
