@@ -131,6 +131,10 @@ pub fn confidence_samples(
     Ok(samples)
 }
 
+/// Revision of the default training recipe; part of cached databases'
+/// names so that a changed recipe retrains instead of reusing a stale file.
+pub const TRAINING_REVISION: u32 = 2;
+
 /// The confidence network's default input, chosen by measurement on the
 /// table-2 protocol (README): the whole response separates reliable from
 /// unreliable estimates better than the paper's four features.

@@ -12,8 +12,8 @@ use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory};
 use acch_confidence::Model as ConfidenceModel;
 use acch_core::{IndexImage, Palette, Rect, ViewDatabase};
 use acch_ipc::{
-    FrameHeader, FrameHistory, Ipc, Names, Qos, ResultMsg, SeedPublisher, ShmLocator, StageId, ZenohConfig, now_ns,
-    pixel_format,
+    FrameHeader, FrameHistory, Ipc, Names, Qos, ResultMsg, SeedPublisher, ShmLocator, StageId,
+    ZenohConfig, now_ns, pixel_format,
 };
 use acch_pose::{PoseEstimator, Refinement, Slice};
 use acch_recognition::{CellRect, Detection, Detector, RecognitionModel};
@@ -83,13 +83,15 @@ impl Default for PipelineConfig {
 impl PipelineConfig {
     /// Reads a TOML file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
     }
 
     /// Writes it as TOML.
     pub fn save(&self, path: &Path) -> Result<()> {
-        std::fs::write(path, toml::to_string(self)?).with_context(|| format!("writing {}", path.display()))
+        std::fs::write(path, toml::to_string(self)?)
+            .with_context(|| format!("writing {}", path.display()))
     }
 
     /// The run's service names.
@@ -107,7 +109,10 @@ impl PipelineConfig {
     }
 
     fn database(&self) -> Result<ViewDatabase> {
-        let path = self.db.as_ref().ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
+        let path = self
+            .db
+            .as_ref()
+            .ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
         Ok(ViewDatabase::load(path)?)
     }
 }
@@ -142,14 +147,20 @@ fn announce_ready(ipc: &Ipc, id: StageId) -> Result<()> {
 pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     let id = S::ID;
     let ipc = cfg.ipc(id.name())?;
-    let upstream = id.upstream().ok_or_else(|| anyhow!("capture is not a processing stage"))?;
+    let upstream = id
+        .upstream()
+        .ok_or_else(|| anyhow!("capture is not a processing stage"))?;
     let from_frames = upstream == StageId::Capture;
     let frames = if from_frames || S::NEEDS_FRAME {
         Some(ipc.frame_input(from_frames)?)
     } else {
         None
     };
-    let results = if from_frames { None } else { Some(ipc.result_input(upstream)?) };
+    let results = if from_frames {
+        None
+    } else {
+        Some(ipc.result_input(upstream)?)
+    };
     let output = ipc.result_output(id, stage.payload_len())?;
     let mut history = FrameHistory::new(cfg.frame_history);
     let mut locator = ShmLocator::new();
@@ -229,7 +240,8 @@ impl Recognition {
     /// The stage for `cfg`.
     pub fn new(cfg: &PipelineConfig, width: u32, height: u32) -> Result<Self> {
         let db = cfg.database()?;
-        let model = RecognitionModel::from_database(&db)?.ok_or_else(|| anyhow!("the database has no recognition model"))?;
+        let model = RecognitionModel::from_database(&db)?
+            .ok_or_else(|| anyhow!("the database has no recognition model"))?;
         Ok(Recognition {
             palette: db.palette.clone(),
             detector: Detector::new(model, width, height)?,
@@ -253,7 +265,12 @@ impl Stage for Recognition {
             msg.found = 1;
             msg.window = [d.window.x, d.window.y, d.window.width, d.window.height].map(u64::from);
             msg.cells = [d.cells.x0, d.cells.y0, d.cells.x1, d.cells.y1].map(u64::from);
-            msg.detection = [d.score as f64, d.threshold as f64, d.scale as f64, d.truncated as u64 as f64];
+            msg.detection = [
+                d.score as f64,
+                d.threshold as f64,
+                d.scale as f64,
+                d.truncated as u64 as f64,
+            ];
         }
     }
 }
@@ -271,7 +288,8 @@ impl Segmentation {
     /// The stage for `cfg`.
     pub fn new(cfg: &PipelineConfig, width: u32, height: u32) -> Result<Self> {
         let db = cfg.database()?;
-        let model = RecognitionModel::from_database(&db)?.ok_or_else(|| anyhow!("the database has no recognition model"))?;
+        let model = RecognitionModel::from_database(&db)?
+            .ok_or_else(|| anyhow!("the database has no recognition model"))?;
         Ok(Segmentation {
             palette: db.palette.clone(),
             detector: Detector::new(model, width, height)?,
@@ -298,7 +316,9 @@ impl Stage for Segmentation {
         self.len
     }
     fn process(&mut self, msg: &mut ResultMsg, _: &[u8], frame: Option<&[u8]>, out: &mut [u8]) {
-        let (Some(rgb), 1) = (frame, msg.found) else { return };
+        let (Some(rgb), 1) = (frame, msg.found) else {
+            return;
+        };
         let (w, h) = (msg.width as u32, msg.height as u32);
         self.palette.quantise_into(rgb, w, h, &mut self.index);
         self.detector.prepare(&self.index);
@@ -356,17 +376,27 @@ impl Stage for Pose {
         self.views * 4
     }
     fn process(&mut self, msg: &mut ResultMsg, mask: &[u8], frame: Option<&[u8]>, out: &mut [u8]) {
-        let (Some(rgb), 1) = (frame, msg.segmented) else { return };
+        let (Some(rgb), 1) = (frame, msg.segmented) else {
+            return;
+        };
         let (w, h) = (msg.width as u32, msg.height as u32);
         self.palette.quantise_into(rgb, w, h, &mut self.index);
-        let Some(e) = self
-            .estimator
-            .estimate(&self.index, Some(mask), rect(msg.roi), self.scale, Refinement::Parabolic)
-        else {
+        let Some(e) = self.estimator.estimate(
+            &self.index,
+            Some(mask),
+            rect(msg.roi),
+            self.scale,
+            Refinement::Parabolic,
+        ) else {
             return;
         };
         msg.estimated = 1;
-        msg.estimate = [e.theta_deg as f64, e.phi_deg as f64, e.best_value as f64, e.scale as f64];
+        msg.estimate = [
+            e.theta_deg as f64,
+            e.phi_deg as f64,
+            e.best_value as f64,
+            e.scale as f64,
+        ];
         msg.best_view = e.best_view as u64;
         msg.accepted = 1;
         msg.confidence = 1.0;
@@ -443,7 +473,11 @@ impl Seeding {
     /// The stage for `cfg` (opens the zenoh session).
     pub fn new(cfg: &PipelineConfig) -> Result<Self> {
         let db = cfg.database()?;
-        let grid = acch_seeding::grid_spacing(db.views().iter().map(|v| (v.theta_deg as f64, v.phi_deg as f64)));
+        let grid = acch_seeding::grid_spacing(
+            db.views()
+                .iter()
+                .map(|v| (v.theta_deg as f64, v.phi_deg as f64)),
+        );
         Ok(Seeding {
             object: db.object.clone(),
             grid,
@@ -624,7 +658,7 @@ impl ResultJson {
                 phi_deg: m.truth.phi_deg,
                 distance: m.truth.distance,
                 translation: a.translation.to_array(),
-                rotation_xyzw: DQuat::from_mat3(&glam::DMat3::from(a.matrix3)).normalize().to_array(),
+                rotation_xyzw: DQuat::from_mat3(&a.matrix3).normalize().to_array(),
             }
         });
         ResultJson {
@@ -654,7 +688,7 @@ enum Source {
     Synthetic {
         renderer: Box<acch_capture::Renderer>,
         trajectory: Trajectory,
-        frame: acch_capture::Rendered,
+        frame: Box<acch_capture::Rendered>,
         seed: u64,
     },
     Folder {
@@ -674,10 +708,15 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
         "synthetic" => {
             let object = acch_capture::Object::builtin(&cfg.object)?;
             let background: Background = cfg.background.parse()?;
-            let renderer = super::cmd::common::renderer(std::sync::Arc::new(object), background, cfg.seed);
+            let renderer =
+                super::cmd::common::renderer(std::sync::Arc::new(object), background, cfg.seed);
             let distance = cfg.distance.unwrap_or(DEFAULT_DISTANCE);
-            let trajectory = Trajectory::new(cfg.seed, if cfg.fps > 0.0 { cfg.fps } else { 30.0 }, distance)?;
-            let frame = renderer.render(&trajectory.frame(0).view, 0);
+            let trajectory = Trajectory::new(
+                cfg.seed,
+                if cfg.fps > 0.0 { cfg.fps } else { 30.0 },
+                distance,
+            )?;
+            let frame = Box::new(renderer.render(&trajectory.frame(0).view, 0));
             Source::Synthetic {
                 renderer: Box::new(renderer),
                 trajectory,
@@ -700,13 +739,16 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                     .filter(|p| p.extension().is_some_and(|x| x == "png" || x == "jpg"))
                     .map(|p| (p, None))
                     .collect();
-                v.sort();
+                v.sort_by(|a, b| a.0.cmp(&b.0));
                 v
             };
             if files.is_empty() {
                 bail!("{} holds no images", dir.display());
             }
-            Source::Folder { files, pixels: Vec::new() }
+            Source::Folder {
+                files,
+                pixels: Vec::new(),
+            }
         }
         other => bail!("unknown source '{other}': use synthetic or folder:DIR"),
     };
@@ -714,9 +756,10 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
     // Wait for the launcher: every subscriber is connected.
     let mut go = false;
     while !go && ipc.keep_running() {
-        start
-            .timed_wait(|_| go = true, WAIT)
-            .map_err(|e| anyhow!("waiting for start: {e:?}"))?;
+        start.timed_wait(|_| go = true, WAIT).or_else(|e| match e {
+            iceoryx2::port::listener::ListenerWaitError::InterruptSignal => Ok(0),
+            e => Err(anyhow!("waiting for start: {e:?}")),
+        })?;
     }
     let k = acch_capture::Intrinsics::default();
     let mut locator = ShmLocator::new();
@@ -729,15 +772,13 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 std::thread::sleep(wait);
             }
         }
-        let captured = now_ns();
+        let started = now_ns();
         let mut header = FrameHeader {
             sequence: i,
-            capture_ns: captured,
             pixel_format: pixel_format::RGB8,
             intrinsics: [k.fx, k.fy, k.cx, k.cy],
             ..Default::default()
         };
-        header.trail.captured_ns = captured;
         let pixels: &[u8] = match &mut source {
             Source::Synthetic {
                 renderer,
@@ -746,7 +787,11 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 seed,
             } => {
                 let view = trajectory.frame(i).view;
-                renderer.render_into(&view, super::cmd::common::frame_seed(*seed, i as usize), frame);
+                renderer.render_into(
+                    &view,
+                    super::cmd::common::frame_seed(*seed, i as usize),
+                    frame,
+                );
                 let (w, h) = frame.image.dimensions();
                 (header.width, header.height) = (w as u64, h as u64);
                 let t = &frame.truth;
@@ -780,10 +825,19 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             }
         };
         if pixels.len() > 640 * 480 * 3 {
-            bail!("frame {i} is {}x{}: larger than 640x480", header.width, header.height);
+            bail!(
+                "frame {i} is {}x{}: larger than 640x480",
+                header.width,
+                header.height
+            );
         }
         header.stride = header.width * 3;
-        header.trail.stages[0].received_ns = now_ns();
+        // The frame exists now (a camera's exposure time stamp); rendering or
+        // decoding it is the capture stage's processing time.
+        let captured = now_ns();
+        header.capture_ns = captured;
+        header.trail.captured_ns = captured;
+        header.trail.stages[0].received_ns = started;
         output.send(pixels, |h, addr| {
             let loc = locator.locate(addr).unwrap_or_default();
             (header.shm_file, header.shm_offset) = loc;
@@ -808,8 +862,11 @@ pub fn frame_size(cfg: &PipelineConfig) -> Result<(u32, u32)> {
             .filter(|p| p.extension().is_some_and(|x| x == "png" || x == "jpg"))
             .collect();
         first.sort();
-        let p = first.first().ok_or_else(|| anyhow!("{dir} holds no images"))?;
-        let (w, h) = image::image_dimensions(p).with_context(|| format!("reading {}", p.display()))?;
+        let p = first
+            .first()
+            .ok_or_else(|| anyhow!("{dir} holds no images"))?;
+        let (w, h) =
+            image::image_dimensions(p).with_context(|| format!("reading {}", p.display()))?;
         return Ok((w, h));
     }
     let k = acch_capture::Intrinsics::default();

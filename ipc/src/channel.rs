@@ -87,7 +87,10 @@ impl Ipc {
 
     fn frame_service(
         &self,
-    ) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], FrameHeader>, IpcError> {
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], FrameHeader>,
+        IpcError,
+    > {
         let h = self.qos.frame_history.max(1);
         self.node
             .service_builder(&self.names.name("frames")?)
@@ -106,7 +109,10 @@ impl Ipc {
     fn result_service(
         &self,
         stage: StageId,
-    ) -> Result<iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ResultMsg>, IpcError> {
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ResultMsg>,
+        IpcError,
+    > {
         self.node
             .service_builder(&self.names.name(stage.name())?)
             .publish_subscribe::<[u8]>()
@@ -121,7 +127,10 @@ impl Ipc {
             .map_err(err("result service"))
     }
 
-    fn event(&self, what: &str) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
+    fn event(
+        &self,
+        what: &str,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
         self.node
             .service_builder(&self.names.name(&format!("{what}/event"))?)
             .event()
@@ -140,23 +149,46 @@ impl Ipc {
             .max_loaned_samples(1)
             .create()
             .map_err(err("frame publisher"))?;
-        let notifier = self.event("frames")?.notifier_builder().create().map_err(err("frame notifier"))?;
-        Ok(Output { publisher, notifier })
+        let notifier = self
+            .event("frames")?
+            .notifier_builder()
+            .create()
+            .map_err(err("frame notifier"))?;
+        Ok(Output {
+            publisher,
+            notifier,
+        })
     }
 
     /// A frame subscriber; `wake` = also listen for the frame event.
     pub fn frame_input(&self, wake: bool) -> Result<Input<FrameHeader>, IpcError> {
-        let subscriber = self.frame_service()?.subscriber_builder().create().map_err(err("frame subscriber"))?;
+        let subscriber = self
+            .frame_service()?
+            .subscriber_builder()
+            .create()
+            .map_err(err("frame subscriber"))?;
         let listener = if wake {
-            Some(self.event("frames")?.listener_builder().create().map_err(err("frame listener"))?)
+            Some(
+                self.event("frames")?
+                    .listener_builder()
+                    .create()
+                    .map_err(err("frame listener"))?,
+            )
         } else {
             None
         };
-        Ok(Input { subscriber, listener })
+        Ok(Input {
+            subscriber,
+            listener,
+        })
     }
 
     /// The result publisher of `stage`, payloads up to `max_payload` bytes.
-    pub fn result_output(&self, stage: StageId, max_payload: usize) -> Result<Output<ResultMsg>, IpcError> {
+    pub fn result_output(
+        &self,
+        stage: StageId,
+        max_payload: usize,
+    ) -> Result<Output<ResultMsg>, IpcError> {
         let publisher = self
             .result_service(stage)?
             .publisher_builder()
@@ -169,7 +201,10 @@ impl Ipc {
             .notifier_builder()
             .create()
             .map_err(err("result notifier"))?;
-        Ok(Output { publisher, notifier })
+        Ok(Output {
+            publisher,
+            notifier,
+        })
     }
 
     /// A subscriber to `stage`'s results that sleeps on its event.
@@ -185,17 +220,26 @@ impl Ipc {
                 .create()
                 .map_err(err("result listener"))?,
         );
-        Ok(Input { subscriber, listener })
+        Ok(Input {
+            subscriber,
+            listener,
+        })
     }
 
     /// Notifier of the control event `what` ("ready", "start").
     pub fn control_notifier(&self, what: &str) -> Result<Notifier<Svc>, IpcError> {
-        self.event(what)?.notifier_builder().create().map_err(err("control notifier"))
+        self.event(what)?
+            .notifier_builder()
+            .create()
+            .map_err(err("control notifier"))
     }
 
     /// Listener of the control event `what`.
     pub fn control_listener(&self, what: &str) -> Result<Listener<Svc>, IpcError> {
-        self.event(what)?.listener_builder().create().map_err(err("control listener"))
+        self.event(what)?
+            .listener_builder()
+            .create()
+            .map_err(err("control listener"))
     }
 }
 
@@ -210,12 +254,25 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
     /// (the one write of these bytes), lets `fill` set the header (given the
     /// payload's address in this process), sends and notifies. Returns the
     /// number of subscribers reached.
-    pub fn send(&self, payload: &[u8], fill: impl FnOnce(&mut H, usize)) -> Result<usize, IpcError> {
-        let mut sample = self.publisher.loan_slice_uninit(payload.len()).map_err(err("loan"))?;
+    pub fn send(
+        &self,
+        payload: &[u8],
+        fill: impl FnOnce(&mut H, usize),
+    ) -> Result<usize, IpcError> {
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(payload.len())
+            .map_err(err("loan"))?;
         let dst = sample.payload_mut();
         let addr = dst.as_ptr() as usize;
         // SAFETY: dst has exactly payload.len() bytes; u8 has no invalid values.
-        unsafe { std::ptr::copy_nonoverlapping(payload.as_ptr(), dst.as_mut_ptr().cast::<u8>(), payload.len()) };
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                payload.as_ptr(),
+                dst.as_mut_ptr().cast::<u8>(),
+                payload.len(),
+            )
+        };
         // SAFETY: every byte was written above.
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
@@ -236,7 +293,11 @@ impl<H: Debug + ZeroCopySend + 'static> Input<H> {
     /// lets the caller check for termination); drains the pending events.
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
         if let Some(l) = &self.listener {
-            l.timed_wait(|_| {}, timeout).map_err(err("wait"))?;
+            match l.timed_wait(|_| {}, timeout) {
+                // A termination request: the caller sees it in `keep_running`.
+                Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(err("wait")(e)),
+            }
         }
         Ok(())
     }
@@ -280,11 +341,22 @@ impl FrameHistory {
     }
 
     /// Frame `sequence`, pulling newly arrived frames first; releases older frames.
-    pub fn get(&mut self, input: &Input<FrameHeader>, sequence: u64) -> Result<Option<&FrameSample>, IpcError> {
+    pub fn get(
+        &mut self,
+        input: &Input<FrameHeader>,
+        sequence: u64,
+    ) -> Result<Option<&FrameSample>, IpcError> {
         self.pull(input)?;
-        while self.frames.front().is_some_and(|f| f.user_header().sequence < sequence) {
+        while self
+            .frames
+            .front()
+            .is_some_and(|f| f.user_header().sequence < sequence)
+        {
             self.frames.pop_front();
         }
-        Ok(self.frames.front().filter(|f| f.user_header().sequence == sequence))
+        Ok(self
+            .frames
+            .front()
+            .filter(|f| f.user_header().sequence == sequence))
     }
 }

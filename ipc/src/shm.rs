@@ -11,7 +11,9 @@ pub struct ShmLocator {
 }
 
 fn fnv(s: &str) -> u64 {
-    s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100_0000_01b3))
+    s.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
+    })
 }
 
 impl ShmLocator {
@@ -36,7 +38,9 @@ impl ShmLocator {
             if !path.starts_with("/dev/shm") && !path.contains("iox2") {
                 continue;
             }
-            let Some((a, b)) = range.split_once('-') else { continue };
+            let Some((a, b)) = range.split_once('-') else {
+                continue;
+            };
             let (Ok(a), Ok(b), Ok(off)) = (
                 usize::from_str_radix(a, 16),
                 usize::from_str_radix(b, 16),

@@ -46,7 +46,9 @@ pub fn open_session(listen: &[String], connect: &[String]) -> Result<zenoh::Sess
     ] {
         c.insert_json5(k, &v).map_err(zerr("zenoh configuration"))?;
     }
-    zenoh::open(c).wait().map_err(zerr("opening the zenoh session (is the port in use?)"))
+    zenoh::open(c)
+        .wait()
+        .map_err(zerr("opening the zenoh session (is the port in use?)"))
 }
 
 /// The publishers of one object's seeds and results.
@@ -75,12 +77,18 @@ impl SeedPublisher {
     /// Publishes a seed (JSON).
     pub fn put_seed(&self, json: Vec<u8>) -> Result<(), IpcError> {
         use zenoh::Wait;
-        self.session.put(&self.seed_key, json).wait().map_err(zerr("publishing the seed"))
+        self.session
+            .put(&self.seed_key, json)
+            .wait()
+            .map_err(zerr("publishing the seed"))
     }
 
     /// Publishes a per-frame result (JSON).
     pub fn put_result(&self, json: Vec<u8>) -> Result<(), IpcError> {
         use zenoh::Wait;
-        self.session.put(&self.result_key, json).wait().map_err(zerr("publishing the result"))
+        self.session
+            .put(&self.result_key, json)
+            .wait()
+            .map_err(zerr("publishing the result"))
     }
 }

@@ -34,7 +34,9 @@ impl Children {
                         }
                         break;
                     }
-                    Ok(None) if Instant::now() < until => std::thread::sleep(Duration::from_millis(20)),
+                    Ok(None) if Instant::now() < until => {
+                        std::thread::sleep(Duration::from_millis(20))
+                    }
                     _ => {
                         tracing::warn!("stage {} did not stop in time: killed", id.name());
                         let _ = c.kill();
@@ -129,7 +131,8 @@ pub fn run(args: RunArgs) -> Result<()> {
     cfg.instance = std::process::id().to_string();
     if cfg.db.is_none() {
         let object = std::sync::Arc::new(acch_capture::Object::builtin(&cfg.object)?);
-        let (_, path) = cached_database_at(&object, args.cache_dir.clone().or(cfg.cache_dir.clone()))?;
+        let (_, path) =
+            cached_database_at(&object, args.cache_dir.clone().or(cfg.cache_dir.clone()))?;
         cfg.db = Some(path);
     }
     let stale = remove_stale_resources();
@@ -178,7 +181,10 @@ pub fn run(args: RunArgs) -> Result<()> {
                 },
                 Duration::from_millis(200),
             )
-            .map_err(|e| anyhow!("waiting for the stages: {e:?}"))?;
+            .or_else(|e| match e {
+                iceoryx2::port::listener::ListenerWaitError::InterruptSignal => Ok(0),
+                e => Err(anyhow!("waiting for the stages: {e:?}")),
+            })?;
     }
     eprintln!(
         "acch run: {} stages connected (instance {}), streaming {} frames of {} at {}",
@@ -192,7 +198,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             "free-running".into()
         }
     );
-    start.notify().map_err(|e| anyhow!("starting the capture: {e:?}"))?;
+    start
+        .notify()
+        .map_err(|e| anyhow!("starting the capture: {e:?}"))?;
 
     let t0 = Instant::now();
     let mut got: Vec<ResultMsg> = Vec::with_capacity(cfg.frames as usize);
@@ -254,11 +262,20 @@ impl Drop for RemoveOnDrop {
     }
 }
 
-fn summarise(cfg: &PipelineConfig, got: &[ResultMsg], elapsed: f64, stale_nodes_removed: usize) -> Summary {
+fn summarise(
+    cfg: &PipelineConfig,
+    got: &[ResultMsg],
+    elapsed: f64,
+    stale_nodes_removed: usize,
+) -> Summary {
     let count = |f: fn(&ResultMsg) -> bool| got.iter().filter(|m| f(m)).count() as u64;
     let mut e2e: Vec<u64> = got
         .iter()
-        .map(|m| m.trail.stages[StageId::Seeding as usize].published_ns.saturating_sub(m.trail.captured_ns))
+        .map(|m| {
+            m.trail.stages[StageId::Seeding as usize]
+                .published_ns
+                .saturating_sub(m.trail.captured_ns)
+        })
         .collect();
     let mut stages = Vec::new();
     for id in StageId::ALL.into_iter().skip(1) {
@@ -266,11 +283,19 @@ fn summarise(cfg: &PipelineConfig, got: &[ResultMsg], elapsed: f64, stale_nodes_
         let i = id as usize;
         let mut hop: Vec<u64> = got
             .iter()
-            .map(|m| m.trail.stages[i].received_ns.saturating_sub(m.trail.stages[up].published_ns))
+            .map(|m| {
+                m.trail.stages[i]
+                    .received_ns
+                    .saturating_sub(m.trail.stages[up].published_ns)
+            })
             .collect();
         let mut process: Vec<u64> = got
             .iter()
-            .map(|m| m.trail.stages[i].published_ns.saturating_sub(m.trail.stages[i].received_ns))
+            .map(|m| {
+                m.trail.stages[i]
+                    .published_ns
+                    .saturating_sub(m.trail.stages[i].received_ns)
+            })
             .collect();
         stages.push(StageLatency {
             stage: id.name(),
@@ -280,7 +305,11 @@ fn summarise(cfg: &PipelineConfig, got: &[ResultMsg], elapsed: f64, stale_nodes_
     }
     let mut cap: Vec<u64> = got
         .iter()
-        .map(|m| m.trail.stages[0].published_ns.saturating_sub(m.trail.captured_ns))
+        .map(|m| {
+            m.trail.stages[0]
+                .published_ns
+                .saturating_sub(m.trail.stages[0].received_ns)
+        })
         .collect();
     stages.insert(
         0,
@@ -292,7 +321,14 @@ fn summarise(cfg: &PipelineConfig, got: &[ResultMsg], elapsed: f64, stale_nodes_
     );
     let accepted: Vec<&ResultMsg> = got.iter().filter(|m| m.accepted == 1).collect();
     let n = accepted.len().max(1) as f64;
-    let with_truth = |f: &dyn Fn(&ResultMsg) -> f64| accepted.iter().filter(|m| m.truth.valid == 1).map(|m| f(m)).sum::<f64>() / n;
+    let with_truth = |f: &dyn Fn(&ResultMsg) -> f64| {
+        accepted
+            .iter()
+            .filter(|m| m.truth.valid == 1)
+            .map(|m| f(m))
+            .sum::<f64>()
+            / n
+    };
     let bytes = got.first().map_or(0, |m| m.width * m.height * 3) * got.len() as u64;
     Summary {
         object: cfg.object.clone(),
@@ -306,7 +342,9 @@ fn summarise(cfg: &PipelineConfig, got: &[ResultMsg], elapsed: f64, stale_nodes_
         estimated: count(|m| m.estimated == 1),
         accepted: accepted.len() as u64,
         seeds: count(|m| m.seeded == 1 && m.accepted == 1),
-        accepted_mean_phi_err_deg: with_truth(&|m| phi_error(m.estimate[1] as f32, m.truth.phi_deg as f32) as f64),
+        accepted_mean_phi_err_deg: with_truth(&|m| {
+            phi_error(m.estimate[1] as f32, m.truth.phi_deg as f32) as f64
+        }),
         accepted_mean_theta_err_deg: with_truth(&|m| (m.estimate[0] - m.truth.theta_deg).abs()),
         end_to_end: Percentiles::of(&mut e2e),
         stages,
@@ -347,7 +385,12 @@ fn print_summary(s: &Summary) {
     for st in &s.stages {
         println!(
             "{:<14} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3}",
-            st.stage, st.hop.p50_ms, st.hop.p99_ms, st.process.p50_ms, st.process.p99_ms, st.process.max_ms
+            st.stage,
+            st.hop.p50_ms,
+            st.hop.p99_ms,
+            st.process.p50_ms,
+            st.process.p99_ms,
+            st.process.max_ms
         );
     }
     let e = &s.end_to_end;

@@ -37,7 +37,11 @@ pub fn run(args: ListenArgs) -> Result<()> {
         }
         match sub.recv_timeout(Duration::from_millis(200)) {
             Ok(Some(s)) => {
-                println!("{}: {}", s.key_expr(), String::from_utf8_lossy(&s.payload().to_bytes()));
+                println!(
+                    "{}: {}",
+                    s.key_expr(),
+                    String::from_utf8_lossy(&s.payload().to_bytes())
+                );
                 n += 1;
                 if args.count > 0 && n >= args.count {
                     break;

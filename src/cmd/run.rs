@@ -23,9 +23,6 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-/// Confidence-training scenes per background of the cached default database.
-const DEFAULT_CONFIDENCE_SCENES: usize = 80;
-
 /// Arguments of `acch run`.
 #[derive(Args)]
 pub struct RunArgs {
@@ -47,7 +44,7 @@ pub struct RunArgs {
     /// Camera frame rate; 0 runs free (default 30, or the configuration's).
     #[arg(long)]
     pub(crate) fps: Option<f64>,
-    /// Pipeline configuration (TOML, see docs/pipeline.md).
+    /// Pipeline configuration (TOML; every key is listed in the README).
     #[arg(long, value_name = "FILE")]
     pub(crate) config: Option<PathBuf>,
     /// Chain the stages in this process instead of one process per stage.
@@ -248,7 +245,7 @@ fn run_in_process(args: RunArgs) -> Result<()> {
     let summary = Summary {
         object: object.name().to_owned(),
         background: args.background.to_string(),
-        frames: frames,
+        frames,
         fps_target: fps,
         fps_achieved: frames as f64 / elapsed,
         found,
@@ -351,10 +348,11 @@ pub(crate) fn cached_database_at(
         .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
         .unwrap_or_else(|| std::env::temp_dir().join("acch"));
     let path = dir.join(format!(
-        "{}-v{}-{}.acchdb",
+        "{}-v{}-{}-r{}.acchdb",
         object.name(),
         acch_core::database::FORMAT_VERSION,
-        env!("CARGO_PKG_VERSION")
+        env!("CARGO_PKG_VERSION"),
+        model::TRAINING_REVISION
     ));
     if path.exists() {
         match ViewDatabase::load(&path) {
@@ -373,7 +371,10 @@ pub(crate) fn cached_database_at(
         distance: DEFAULT_DISTANCE,
         seed: 0,
     };
-    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, acch_confidence::Kind::Features));
+    let confidence = Some((
+        model::DEFAULT_CONFIDENCE_SCENES,
+        model::DEFAULT_CONFIDENCE_KIND,
+    ));
     let db = model::train_object(object, &TrainConfig::default(), &training, confidence)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     db.save(&path)?;

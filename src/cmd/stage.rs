@@ -20,7 +20,8 @@ pub struct StageArgs {
 /// Runs `acch stage`.
 pub fn run(args: StageArgs) -> Result<()> {
     let cfg = PipelineConfig::load(&args.config)?;
-    let id = StageId::from_name(&args.name).ok_or_else(|| anyhow!("unknown stage '{}'", args.name))?;
+    let id =
+        StageId::from_name(&args.name).ok_or_else(|| anyhow!("unknown stage '{}'", args.name))?;
     let (w, h) = stages::frame_size(&cfg)?;
     match id {
         StageId::Capture => stages::run_capture(&cfg),

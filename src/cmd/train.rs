@@ -99,7 +99,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
 /// Trains from `DIR/labels.csv` and the images (and masks) it names. Views
 /// without a mask use their bounding box, or the whole image.
 pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabase> {
-    let rows = labels::read_labels(&dir.join("labels.csv"))?;
+    let rows = labels::read_labels(dir.join("labels.csv"))?;
     if rows.is_empty() {
         bail!("{}: no rows", dir.join("labels.csv").display());
     }

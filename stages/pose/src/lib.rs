@@ -266,17 +266,28 @@ impl PoseEstimator {
         let upper = at(slice_k + 1);
         let b = r[best];
         let theta = match (lower, upper) {
-            (Some((t0, a)), Some((t2, c))) => {
-                parabola_vertex((t0, a), (theta0, b), (t2, c)).unwrap_or(theta0)
-            }
-            _ => theta0,
-        };
+            (Some(p0), Some(p2)) => parabola_vertex(p0, (theta0, b), p2)
+                .map(|v| v.clamp((p0.0 + theta0) / 2.0, (theta0 + p2.0) / 2.0)),
+            // At the edge of the grid (θ = 90 or the lowest slice), fit the
+            // edge and its two inner neighbours: the peak may lie up to half
+            // a step inside, never beyond the edge.
+            (Some(p1), None) => slice_k
+                .checked_sub(2)
+                .and_then(at)
+                .and_then(|p0| parabola_vertex(p0, p1, (theta0, b)))
+                .map(|v| v.clamp((p1.0 + theta0) / 2.0, theta0)),
+            (None, Some(p1)) => at(slice_k + 2)
+                .and_then(|p2| parabola_vertex((theta0, b), p1, p2))
+                .map(|v| v.clamp(theta0, (theta0 + p1.0) / 2.0)),
+            (None, None) => None,
+        }
+        .unwrap_or(theta0);
         (theta, phi)
     }
 }
 
-/// x of the vertex of the parabola through three points, kept between the
-/// outer two points' midpoints with the centre; `None` if not a maximum.
+/// x of the vertex of the parabola through three points (distinct x);
+/// `None` if the parabola opens upward (no maximum).
 fn parabola_vertex(p0: (f32, f32), p1: (f32, f32), p2: (f32, f32)) -> Option<f32> {
     let (x0, y0) = p0;
     let (x1, y1) = p1;
@@ -289,8 +300,7 @@ fn parabola_vertex(p0: (f32, f32), p1: (f32, f32), p2: (f32, f32)) -> Option<f32
         return None;
     }
     let b = d01 - a * (x0 + x1);
-    let v = -b / (2.0 * a);
-    Some(v.clamp((x0 + x1) / 2.0, (x1 + x2) / 2.0))
+    Some(-b / (2.0 * a))
 }
 
 fn argmax(v: &[f32]) -> usize {
@@ -342,9 +352,9 @@ mod tests {
         assert!((v - 53.0).abs() < 1e-3, "{v}");
         // A minimum is no peak.
         assert!(parabola_vertex((0.0, 1.0), (1.0, 0.0), (2.0, 1.0)).is_none());
-        // Far peaks are clamped to half the grid step.
+        // A vertex outside the points is still found (callers clamp it).
         let g = |x: f32| -(x - 70.0) * (x - 70.0);
         let v = parabola_vertex((40.0, g(40.0)), (50.0, g(50.0)), (60.0, g(60.0))).unwrap();
-        assert_eq!(v, 55.0);
+        assert!((v - 70.0).abs() < 1e-3, "{v}");
     }
 }

@@ -57,7 +57,12 @@ pub struct Pinhole {
 impl Pinhole {
     /// Unit viewing direction through a pixel, in the camera frame.
     pub fn direction(&self, pixel: DVec2) -> DVec3 {
-        DVec3::new((pixel.x - self.cx) / self.fx, (pixel.y - self.cy) / self.fy, 1.0).normalize()
+        DVec3::new(
+            (pixel.x - self.cx) / self.fx,
+            (pixel.y - self.cy) / self.fy,
+            1.0,
+        )
+        .normalize()
     }
 }
 
@@ -172,7 +177,7 @@ impl Seed {
 
     /// The rotation as a unit quaternion (glam stores x, y, z, w).
     pub fn rotation(&self) -> DQuat {
-        DQuat::from_mat3(&DMat3::from(self.camera_from_object.matrix3)).normalize()
+        DQuat::from_mat3(&self.camera_from_object.matrix3).normalize()
     }
 }
 
@@ -192,13 +197,22 @@ pub fn view_rotation(theta_deg: f64, phi_deg: f64) -> DMat3 {
 pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedError> {
     let bad = |s: String| Err(SeedError::InvalidInput(s));
     if !(0.0..=90.0).contains(&input.theta_deg) || !input.phi_deg.is_finite() {
-        return bad(format!("view (θ {}, φ {}) out of range", input.theta_deg, input.phi_deg));
+        return bad(format!(
+            "view (θ {}, φ {}) out of range",
+            input.theta_deg, input.phi_deg
+        ));
     }
     if !input.roi_centre_px.is_finite() {
         return bad(format!("ROI centre {} is not finite", input.roi_centre_px));
     }
     let k = input.intrinsics;
-    if !(k.fx > 0.0 && k.fy > 0.0 && k.fx.is_finite() && k.fy.is_finite() && k.cx.is_finite() && k.cy.is_finite()) {
+    if !(k.fx > 0.0
+        && k.fy > 0.0
+        && k.fx.is_finite()
+        && k.fy.is_finite()
+        && k.cx.is_finite()
+        && k.cy.is_finite())
+    {
         return bad(format!("intrinsics {k:?} are not a pinhole camera"));
     }
     let (d, d_sigma) = input.distance.value_sigma();
@@ -209,7 +223,8 @@ pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedErro
         return bad(format!("confidence {} outside [0, 1]", input.confidence));
     }
     let g = input.grid;
-    if !(g.theta_deg.is_finite() && g.theta_deg >= 0.0 && g.phi_deg.is_finite() && g.phi_deg >= 0.0) {
+    if !(g.theta_deg.is_finite() && g.theta_deg >= 0.0 && g.phi_deg.is_finite() && g.phi_deg >= 0.0)
+    {
         return bad(format!("grid spacing {g:?} must be finite and >= 0"));
     }
 
@@ -245,7 +260,8 @@ pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedErro
     // from the ROI-centre error at that distance.
     let lateral = d * model.roi_centre_sigma_px / k.fx.min(k.fy);
     let (u1, u2) = ray.any_orthonormal_pair();
-    let trans_cov = outer(ray, ray) * d_sigma.powi(2) + (outer(u1, u1) + outer(u2, u2)) * lateral.powi(2);
+    let trans_cov =
+        outer(ray, ray) * d_sigma.powi(2) + (outer(u1, u1) + outer(u2, u2)) * lateral.powi(2);
 
     let mut covariance = [[0.0; 6]; 6];
     for i in 0..3 {
@@ -344,7 +360,10 @@ mod tests {
     fn max_diff(a: DAffine3, b: DAffine3) -> f64 {
         let a = a.to_cols_array();
         let b = b.to_cols_array();
-        a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
     }
 
     #[test]
@@ -413,7 +432,8 @@ mod tests {
 
     #[test]
     fn grid_spacing_of_a_regular_grid() {
-        let views = (0..3).flat_map(|i| (0..36).map(move |j| (45.0 + 10.0 * i as f64, 10.0 * j as f64)));
+        let views =
+            (0..3).flat_map(|i| (0..36).map(move |j| (45.0 + 10.0 * i as f64, 10.0 * j as f64)));
         let g = grid_spacing(views);
         assert_eq!(g.theta_deg, 10.0);
         assert!((g.phi_deg - 10.0).abs() < 1e-9);

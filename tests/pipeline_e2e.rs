@@ -1,0 +1,121 @@
+//! End to end: `acch run` starts every stage as a real process; an
+//! independent subscriber (Python `eclipse-zenoh`, tests/pipeline_subscriber.py)
+//! receives the results and seeds over zenoh and checks the seeds' rotation
+//! against the renderer's ground truth carried in each result.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Kills the child on drop, so a failing test leaves no process behind.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn python_has_zenoh() -> bool {
+    Command::new("python3")
+        .args(["-c", "import zenoh"])
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+#[test]
+fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
+    assert!(
+        python_has_zenoh(),
+        "python3 with eclipse-zenoh==1.10.2 is required (pip install eclipse-zenoh==1.10.2; .ci/run installs it)"
+    );
+    let frames = 90;
+    let (sub_port, pipe_port) = (free_port(), free_port());
+    let dir = tempfile::tempdir().unwrap();
+    // The subscriber listens; the pipeline connects to it (so the subscriber
+    // is up before the first seed).
+    let mut sub = Guard(
+        Command::new("python3")
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/pipeline_subscriber.py"
+            ))
+            .arg(format!("tcp/127.0.0.1:{sub_port}"))
+            .arg("fruitbox")
+            .arg(frames.to_string())
+            .arg("240")
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let mut lines = BufReader::new(sub.0.stdout.take().unwrap()).lines();
+    let ready = lines.next().unwrap().unwrap();
+    assert!(ready.contains("ready"), "{ready}");
+
+    let config = dir.path().join("pipeline.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{pipe_port}\"]\nconnect = [\"tcp/127.0.0.1:{sub_port}\"]\n"
+        ),
+    )
+    .unwrap();
+    let json = dir.path().join("run.json");
+    let mut run = Guard(
+        Command::new(env!("CARGO_BIN_EXE_acch"))
+            .args(["run", "--config"])
+            .arg(&config)
+            .arg("--json")
+            .arg(&json)
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = run.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "acch run did not finish in 300 s"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(status.success(), "acch run failed: {status}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        summary["results"], frames,
+        "every frame gets a result: {summary}"
+    );
+    assert_eq!(
+        summary["frame_reads"], summary["frame_reads_in_place"],
+        "{summary}"
+    );
+    assert!(summary["end_to_end"]["p99_ms"].as_f64().unwrap() > 0.0);
+
+    let report = lines.next().expect("subscriber report").unwrap();
+    let r: serde_json::Value = serde_json::from_str(&report).unwrap();
+    eprintln!("subscriber: {r}");
+    assert_eq!(r["results"], frames, "{r}");
+    assert_eq!(r["rejected_with_seed"], 0, "{r}");
+    let seeds = r["seeds"].as_u64().unwrap();
+    assert_eq!(seeds, r["accepted"].as_u64().unwrap(), "{r}");
+    assert!(seeds >= frames / 2, "too few seeds: {r}");
+    let compared = r["compared"].as_u64().unwrap();
+    let within = r["within_15deg"].as_u64().unwrap();
+    assert_eq!(compared, seeds, "{r}");
+    assert!(
+        within as f64 >= 0.9 * compared as f64,
+        "rotation error > 15 deg on more than 10 %: {r}"
+    );
+}

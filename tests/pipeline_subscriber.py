@@ -1,0 +1,69 @@
+"""Independent zenoh subscriber for tests/pipeline_e2e.rs.
+
+Connects to the pipeline's zenoh peer, collects every message on
+acch/<object>/result and acch/<object>/seed until `count` results arrived
+or `timeout` seconds passed, and compares each accepted seed's rotation with
+the renderer's ground truth carried in the result. Prints one JSON line.
+"""
+import json
+import math
+import sys
+import time
+
+import zenoh
+
+
+def angle_deg(q1, q2):
+    """Angle between two rotations given as [x, y, z, w] quaternions."""
+    dot = abs(sum(a * b for a, b in zip(q1, q2)))
+    n1 = math.sqrt(sum(a * a for a in q1))
+    n2 = math.sqrt(sum(a * a for a in q2))
+    return math.degrees(2.0 * math.acos(min(1.0, dot / (n1 * n2))))
+
+
+def main():
+    endpoint, obj, count, timeout = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    # The test starts this subscriber first, listening; the pipeline connects.
+    conf.insert_json5("listen/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("scouting/gossip/enabled", "false")
+    results, seeds = {}, {}
+    with zenoh.open(conf) as session:
+        sub_r = session.declare_subscriber(f"acch/{obj}/result")
+        sub_s = session.declare_subscriber(f"acch/{obj}/seed")
+        print(json.dumps({"ready": True}), flush=True)
+        deadline = time.time() + timeout
+        while time.time() < deadline and len(results) < count:
+            got = False
+            for sub, store in ((sub_r, results), (sub_s, seeds)):
+                s = sub.try_recv()
+                while s is not None:
+                    got = True
+                    m = json.loads(s.payload.to_bytes())
+                    store[m["sequence"]] = m
+                    s = sub.try_recv()
+            if not got:
+                time.sleep(0.01)
+    errors = []
+    for seq, seed in seeds.items():
+        r = results.get(seq)
+        if r is None or r.get("truth") is None:
+            continue
+        errors.append(angle_deg(seed["rotation_xyzw"], r["truth"]["rotation_xyzw"]))
+    accepted = sum(1 for r in results.values() if r["accepted"])
+    rejected_with_seed = sum(1 for r in results.values() if not r["accepted"] and r.get("seed") is not None)
+    print(json.dumps({
+        "results": len(results),
+        "seeds": len(seeds),
+        "accepted": accepted,
+        "rejected_with_seed": rejected_with_seed,
+        "compared": len(errors),
+        "within_15deg": sum(1 for e in errors if e <= 15.0),
+        "median_err_deg": sorted(errors)[len(errors) // 2] if errors else None,
+    }), flush=True)
+
+
+if __name__ == "__main__":
+    main()
