@@ -39,10 +39,13 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     restore_sigpipe();
+    // iceoryx2 warns in every process that it runs on its default config,
+    // which is intended; IOX2_LOG_LEVEL still raises it.
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=error")),
         )
         .with_writer(std::io::stderr)
         .init();

@@ -88,6 +88,11 @@ fn train_estimate_and_features_round_trip() {
             "phi {est_phi} vs {phi}\n{out}"
         );
         assert!(out.contains("top 5 views"), "{out}");
+        // The default database carries a confidence network.
+        assert!(
+            out.contains("confidence") && (out.contains("accepted") || out.contains("rejected")),
+            "{out}"
+        );
     }
     let csv = std::fs::read_to_string(d.join("response.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 216, "one row per training view");
@@ -194,4 +199,65 @@ fn bad_input_gives_clear_errors() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("r_max"));
     assert!(!d.join("x.acchdb").exists(), "nothing written on error");
+}
+
+/// Training from a folder of labelled images (the format `acch render`
+/// writes, as real images would be labelled) and estimating one of them.
+#[test]
+fn trains_from_a_folder_of_labelled_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&acch(
+        &[
+            "render",
+            "--object",
+            "can",
+            "--views",
+            "grid:60,90:30",
+            "--out",
+            "imgs",
+        ],
+        d,
+    ));
+    let out = ok(&acch(
+        &["train", "--images", "imgs", "--out", "can.acchdb"],
+        d,
+    ));
+    assert!(out.contains("trained 24 views"), "{out}");
+    let labels = std::fs::read_to_string(d.join("imgs/labels.csv")).unwrap();
+    let row: Vec<&str> = labels.lines().nth(6).unwrap().split(',').collect();
+    let (theta, phi): (f32, f32) = (row[1].parse().unwrap(), row[2].parse().unwrap());
+    let out = ok(&acch(
+        &[
+            "estimate",
+            "--db",
+            "can.acchdb",
+            "imgs/view_0005.png",
+            "--mask",
+            "imgs/view_0005_mask.png",
+            "--wta",
+        ],
+        d,
+    ));
+    // A training view is its own best match.
+    assert_eq!(
+        (field(&out, "theta"), field(&out, "phi")),
+        (theta, phi),
+        "{out}"
+    );
+
+    let out = acch(
+        &[
+            "train",
+            "--object",
+            "can",
+            "--confidence-threshold",
+            "1.5",
+            "--out",
+            "x.acchdb",
+        ],
+        d,
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--confidence-threshold"));
 }

@@ -231,6 +231,11 @@ fn draw_rect(img: &mut RgbImage, r: Rect, c: Rgb<u8>) {
 pub struct EstimateArgs {
     #[command(flatten)]
     input: Input,
+    /// Confidence below which the estimate is reported as rejected
+    /// (default: the threshold stored in the database, 0.8 unless trained
+    /// otherwise).
+    #[arg(long)]
+    threshold: Option<f32>,
     /// Report the best training view only (the paper's winner takes all).
     #[arg(long)]
     wta: bool,
@@ -272,7 +277,12 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         "theta {:.1} deg  phi {:.1} deg  match {:.4}  scale {:.3}",
         e.theta_deg, e.phi_deg, e.best_value, e.scale
     );
-    if let Some(model) = &loaded.confidence {
+    if let Some(model) = &mut loaded.confidence {
+        if let Some(t) = args.threshold {
+            model
+                .set_threshold(t)
+                .with_context(|| format!("--threshold {t}"))?;
+        }
         let r = model.rating(est.response(), est.slices(), est.database().views());
         println!(
             "confidence {:.3}  {} (threshold {})",

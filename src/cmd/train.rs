@@ -41,6 +41,10 @@ pub struct TrainArgs {
     /// response.
     #[arg(long, value_enum, default_value = "response")]
     confidence_input: ConfidenceInput,
+    /// Confidence below which an estimate is rejected; stored in the
+    /// database (`acch estimate --threshold` overrides it per call).
+    #[arg(long, default_value_t = acch_confidence::DEFAULT_THRESHOLD)]
+    confidence_threshold: f32,
     /// Output database file.
     #[arg(long, value_name = "FILE.acchdb")]
     out: PathBuf,
@@ -67,6 +71,13 @@ impl From<ConfidenceInput> for acch_confidence::Kind {
 /// Runs `acch train`.
 pub fn run(args: TrainArgs) -> Result<()> {
     let config = args.histogram.train_config()?;
+    // Checked before the long training, not after it.
+    if !(0.0..=1.0).contains(&args.confidence_threshold) {
+        bail!(
+            "--confidence-threshold {} must lie in [0, 1]",
+            args.confidence_threshold
+        );
+    }
     let start = std::time::Instant::now();
     let db = match &args.images {
         Some(dir) => train_from_folder(dir, &config)?,
@@ -79,7 +90,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 seed: args.seed,
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
-            model::train_object(&object, &config, &training, confidence)?
+            let mut db = model::train_object(&object, &config, &training, confidence)?;
+            if args.confidence_scenes > 0 {
+                let mut network = acch_confidence::Model::load(&db)?;
+                network.set_threshold(args.confidence_threshold)?;
+                network.store(&mut db);
+            }
+            db
         }
     };
     db.save(&args.out)?;
