@@ -202,3 +202,20 @@ pub fn labelled(r: &Rendered, train_distance: f64) -> LabelledView<'_> {
         scale: (train_distance / r.truth.distance) as f32,
     }
 }
+
+/// Reads an object mask (any image; non-zero luma = object) that must match
+/// its image's size; errors name the file.
+pub fn read_mask(path: &std::path::Path, (w, h): (u32, u32)) -> Result<Vec<u8>> {
+    let mask = image::open(path)
+        .with_context(|| format!("reading mask {}", path.display()))?
+        .to_luma8();
+    if mask.dimensions() != (w, h) {
+        bail!(
+            "{}: mask is {}x{} but its image is {w}x{h}",
+            path.display(),
+            mask.width(),
+            mask.height()
+        );
+    }
+    Ok(mask.into_raw())
+}

@@ -85,18 +85,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
     }
     let (mask, roi) = match &input.mask {
         Some(mask_path) => {
-            let mask = image::open(mask_path)
-                .with_context(|| format!("reading mask {}", mask_path.display()))?
-                .to_luma8();
-            if mask.dimensions() != (w, h) {
-                bail!(
-                    "{}: mask is {}x{} but the image is {w}x{h}",
-                    mask_path.display(),
-                    mask.width(),
-                    mask.height()
-                );
-            }
-            let mask = mask.into_raw();
+            let mask = super::common::read_mask(mask_path, (w, h))?;
             let Some(roi) = mask_bbox(&mask, w, h) else {
                 bail!("{}: the mask is empty", mask_path.display());
             };

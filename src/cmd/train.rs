@@ -132,22 +132,7 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
             .to_rgb8();
         let (w, h) = rgb.dimensions();
         let mask = match (&row.mask, &row.bbox) {
-            (Some(m), _) => {
-                let mpath = dir.join(m);
-                let mask = image::open(&mpath)
-                    .with_context(|| format!("reading mask {}", mpath.display()))?
-                    .to_luma8();
-                if mask.dimensions() != (w, h) {
-                    bail!(
-                        "{}: mask is {}x{} but its image {} is {w}x{h}",
-                        mpath.display(),
-                        mask.width(),
-                        mask.height(),
-                        path.display()
-                    );
-                }
-                mask.into_raw()
-            }
+            (Some(m), _) => common::read_mask(&dir.join(m), (w, h))?,
             (None, Some(b)) => {
                 let mut m = vec![0u8; (w * h) as usize];
                 for y in b.y..(b.y + b.height).min(h) {
