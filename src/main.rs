@@ -35,6 +35,8 @@ enum Command {
     Features(cmd::features::FeaturesArgs),
     /// Evaluate accuracy with a reproducible protocol (paper table 1).
     Eval(cmd::eval::EvalArgs),
+    /// Latency benchmark: processes vs one process vs frames copied (JSON + PNG).
+    Bench(cmd::bench::BenchArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -52,6 +54,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => cmd::run::run(args),
+        Command::Bench(args) => cmd::bench::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Stage(args) => cmd::stage::run(args),
         Command::Listen(args) => cmd::listen::run(args),

@@ -57,6 +57,15 @@ pub struct PipelineConfig {
     pub distance: Option<f64>,
     /// Frames each pixel-reading stage keeps to look frame N up.
     pub frame_history: usize,
+    /// Width of the synthetic camera's frames, pixels.
+    pub width: u32,
+    /// Height of the synthetic camera's frames, pixels.
+    pub height: u32,
+    /// How frames reach the stages: `shm` (zero copy, the pipeline) or
+    /// `copy` (the benchmark's baseline: capture writes every frame into a
+    /// Unix socket per pixel-reading stage, which reads it into its own
+    /// buffer).
+    pub transport: String,
     /// zenoh endpoints.
     pub zenoh: ZenohConfig,
 }
@@ -75,6 +84,9 @@ impl Default for PipelineConfig {
             seed: 0,
             distance: Some(DEFAULT_DISTANCE),
             frame_history: 4,
+            width: 640,
+            height: 480,
+            transport: "shm".into(),
             zenoh: ZenohConfig::default(),
         }
     }
@@ -103,9 +115,31 @@ impl PipelineConfig {
     pub fn ipc(&self, node: &str) -> Result<Ipc> {
         let qos = Qos {
             frame_history: self.frame_history.max(1),
-            max_frame_bytes: 640 * 480 * 3,
+            max_frame_bytes: self.max_frame_bytes(),
         };
         Ok(Ipc::new(self.names(), node, qos)?)
+    }
+
+    /// Largest frame, bytes (the frame service's shared memory is sized
+    /// for it).
+    pub fn max_frame_bytes(&self) -> usize {
+        self.width.max(1) as usize * self.height.max(1) as usize * 3
+    }
+
+    /// Whether frames are copied through Unix sockets (`transport = "copy"`).
+    pub fn copies_frames(&self) -> Result<bool> {
+        match self.transport.as_str() {
+            "shm" => Ok(false),
+            "copy" => Ok(true),
+            other => bail!("unknown transport '{other}': use shm or copy"),
+        }
+    }
+
+    /// The synthetic camera: the default focal length (so the object has
+    /// its trained size in pixels at any resolution), principal point at
+    /// the centre of a `width` x `height` image.
+    pub fn intrinsics(&self) -> acch_capture::Intrinsics {
+        sized_intrinsics(self.width, self.height)
     }
 
     fn database(&self) -> Result<ViewDatabase> {
@@ -151,7 +185,18 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
         .upstream()
         .ok_or_else(|| anyhow!("capture is not a processing stage"))?;
     let from_frames = upstream == StageId::Capture;
-    let frames = if from_frames || S::NEEDS_FRAME {
+    let copying = cfg.copies_frames()?;
+    // The copy baseline: pixels arrive on this stage's socket; the frame
+    // service then only carries recognition's headers and wake-ups.
+    let mut copies = if copying && S::NEEDS_FRAME {
+        Some(copy::FrameReceiver::bind(
+            &copy::socket_path(cfg, id),
+            cfg.frame_history,
+        )?)
+    } else {
+        None
+    };
+    let frames = if from_frames || (S::NEEDS_FRAME && !copying) {
         Some(ipc.frame_input(from_frames)?)
     } else {
         None
@@ -168,13 +213,6 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     announce_ready(&ipc, id)?;
     tracing::debug!("{} ready", id.name());
     let mut processed = 0u64;
-    let mut in_place = |msg: &mut ResultMsg, f: &acch_ipc::FrameSample| {
-        let h = f.user_header();
-        msg.frame_reads += 1;
-        if locator.locate(f.payload().as_ptr() as usize) == Some((h.shm_file, h.shm_offset)) {
-            msg.frame_reads_in_place += 1;
-        }
-    };
     while ipc.keep_running() {
         if let Some(r) = &results {
             r.wait(WAIT)?;
@@ -188,22 +226,35 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
                 let Some(s) = r.receive()? else { break };
                 received = now_ns();
                 msg = *s.user_header();
-                let frame = match &frames {
-                    Some(f) => history.get(f, msg.sequence)?,
-                    None => None,
+                let frame = match (&mut copies, &frames) {
+                    (Some(c), _) => {
+                        msg.frame_reads += 1;
+                        c.take(msg.sequence, WAIT)
+                    }
+                    (None, Some(f)) => history.get(f, msg.sequence)?.map(|f| {
+                        in_place(&mut locator, &mut msg, f);
+                        f.payload()
+                    }),
+                    (None, None) => None,
                 };
-                if let Some(f) = frame {
-                    in_place(&mut msg, f);
-                }
-                stage.process(&mut msg, s.payload(), frame.map(|f| f.payload()), &mut out);
+                stage.process(&mut msg, s.payload(), frame, &mut out);
             } else {
                 let Some(f) = frames.as_ref().map(|f| f.receive()).transpose()?.flatten() else {
                     break;
                 };
-                received = now_ns();
                 msg = ResultMsg::from_frame(f.user_header());
-                in_place(&mut msg, &f);
-                stage.process(&mut msg, &[], Some(f.payload()), &mut out);
+                let frame = if let Some(c) = &mut copies {
+                    msg.frame_reads += 1;
+                    // The hop ends when the copy is in this process.
+                    let pixels = c.take(msg.sequence, WAIT);
+                    received = now_ns();
+                    pixels
+                } else {
+                    received = now_ns();
+                    in_place(&mut locator, &mut msg, &f);
+                    Some(f.payload())
+                };
+                stage.process(&mut msg, &[], frame, &mut out);
             }
             msg.trail.stages[id as usize].received_ns = received;
             let mut sent = msg;
@@ -222,6 +273,16 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
         history.dropped
     );
     Ok(())
+}
+
+/// Counts a frame read, and whether it found the pixels where capture
+/// wrote them (same shared-memory file and offset: not copied).
+fn in_place(locator: &mut ShmLocator, msg: &mut ResultMsg, f: &acch_ipc::FrameSample) {
+    let h = f.user_header();
+    msg.frame_reads += 1;
+    if locator.locate(f.payload().as_ptr() as usize) == Some((h.shm_file, h.shm_offset)) {
+        msg.frame_reads_in_place += 1;
+    }
 }
 
 fn scale_of(cfg: &PipelineConfig, db: &ViewDatabase) -> Option<f32> {
@@ -708,8 +769,12 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
         "synthetic" => {
             let object = acch_capture::Object::builtin(&cfg.object)?;
             let background: Background = cfg.background.parse()?;
-            let renderer =
-                super::cmd::common::renderer(std::sync::Arc::new(object), background, cfg.seed);
+            let renderer = sized_renderer(
+                std::sync::Arc::new(object),
+                background,
+                cfg.seed,
+                cfg.intrinsics(),
+            );
             let distance = cfg.distance.unwrap_or(DEFAULT_DISTANCE);
             let trajectory = Trajectory::new(
                 cfg.seed,
@@ -761,8 +826,19 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             e => Err(anyhow!("waiting for start: {e:?}")),
         })?;
     }
-    let k = acch_capture::Intrinsics::default();
+    let k = cfg.intrinsics();
     let mut locator = ShmLocator::new();
+    // The copy baseline: connect to every pixel-reading stage's socket (they
+    // are bound before the stages announce readiness).
+    let mut copies = if cfg.copies_frames()? {
+        Some(copy::FrameSender::connect(
+            [StageId::Recognition, StageId::Segmentation, StageId::Pose]
+                .map(|id| copy::socket_path(cfg, id))
+                .as_slice(),
+        )?)
+    } else {
+        None
+    };
     let t0 = Instant::now();
     let mut i = 0u64;
     while ipc.keep_running() && (cfg.frames == 0 || i < cfg.frames) {
@@ -824,11 +900,13 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 pixels
             }
         };
-        if pixels.len() > 640 * 480 * 3 {
+        if pixels.len() > cfg.max_frame_bytes() {
             bail!(
-                "frame {i} is {}x{}: larger than 640x480",
+                "frame {i} is {}x{}: larger than {}x{} (set width and height)",
                 header.width,
-                header.height
+                header.height,
+                cfg.width,
+                cfg.height
             );
         }
         header.stride = header.width * 3;
@@ -838,12 +916,20 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
         header.capture_ns = captured;
         header.trail.captured_ns = captured;
         header.trail.stages[0].received_ns = started;
-        output.send(pixels, |h, addr| {
-            let loc = locator.locate(addr).unwrap_or_default();
-            (header.shm_file, header.shm_offset) = loc;
+        if let Some(tx) = &mut copies {
+            // Published = the copy starts; the header follows on iceoryx2
+            // with no pixels.
             header.trail.stages[0].published_ns = now_ns();
-            *h = header;
-        })?;
+            tx.send(i, pixels)?;
+            output.send(&[], |h, _| *h = header)?;
+        } else {
+            output.send(pixels, |h, addr| {
+                let loc = locator.locate(addr).unwrap_or_default();
+                (header.shm_file, header.shm_offset) = loc;
+                header.trail.stages[0].published_ns = now_ns();
+                *h = header;
+            })?;
+        }
         i += 1;
     }
     tracing::info!("capture: {i} frames sent");
@@ -869,6 +955,184 @@ pub fn frame_size(cfg: &PipelineConfig) -> Result<(u32, u32)> {
             image::image_dimensions(p).with_context(|| format!("reading {}", p.display()))?;
         return Ok((w, h));
     }
-    let k = acch_capture::Intrinsics::default();
-    Ok((k.width, k.height))
+    Ok((cfg.width, cfg.height))
+}
+
+/// Intrinsics of a `width` x `height` synthetic camera with the default
+/// focal length.
+pub fn sized_intrinsics(width: u32, height: u32) -> acch_capture::Intrinsics {
+    acch_capture::Intrinsics {
+        width,
+        height,
+        cx: (width as f64 - 1.0) / 2.0,
+        cy: (height as f64 - 1.0) / 2.0,
+        ..Default::default()
+    }
+}
+
+/// The synthetic scene's renderer with the given intrinsics.
+pub fn sized_renderer(
+    object: std::sync::Arc<acch_capture::Object>,
+    background: Background,
+    scene_seed: u64,
+    intrinsics: acch_capture::Intrinsics,
+) -> acch_capture::Renderer {
+    acch_capture::Renderer::new(
+        acch_capture::SceneConfig {
+            object,
+            background,
+            intrinsics,
+            effects: Default::default(),
+        },
+        scene_seed,
+    )
+}
+
+/// The benchmark's copy baseline: frames written by capture into one Unix
+/// stream socket per pixel-reading stage; a thread in the stage reads each
+/// frame into a buffer of its own (a ring of `frame_history` buffers,
+/// reused), where the stage looks frame N up.
+pub mod copy {
+    use super::PipelineConfig;
+    use acch_ipc::StageId;
+    use anyhow::{Context, Result};
+    use std::collections::VecDeque;
+    use std::io::{Read, Write};
+    use std::os::unix::net::{UnixListener, UnixStream};
+    use std::path::{Path, PathBuf};
+    use std::sync::{Arc, Condvar, Mutex};
+    use std::time::{Duration, Instant};
+
+    /// The socket a stage receives its frame copies on.
+    pub fn socket_path(cfg: &PipelineConfig, id: StageId) -> PathBuf {
+        std::env::temp_dir().join(format!("acch-{}-{}.sock", cfg.instance, id.name()))
+    }
+
+    /// Capture's end: one connected stream per consumer.
+    pub struct FrameSender {
+        streams: Vec<UnixStream>,
+    }
+
+    impl FrameSender {
+        /// Connects to every consumer's socket.
+        pub fn connect(paths: &[PathBuf]) -> Result<Self> {
+            let streams = paths
+                .iter()
+                .map(|p| {
+                    UnixStream::connect(p).with_context(|| format!("connecting to {}", p.display()))
+                })
+                .collect::<Result<_>>()?;
+            Ok(FrameSender { streams })
+        }
+
+        /// Writes frame `sequence` to every consumer (blocks while a
+        /// consumer's socket buffer is full).
+        pub fn send(&mut self, sequence: u64, pixels: &[u8]) -> Result<()> {
+            let mut head = [0u8; 16];
+            head[..8].copy_from_slice(&sequence.to_ne_bytes());
+            head[8..].copy_from_slice(&(pixels.len() as u64).to_ne_bytes());
+            for s in &mut self.streams {
+                s.write_all(&head).context("writing a frame copy")?;
+                s.write_all(pixels).context("writing a frame copy")?;
+            }
+            Ok(())
+        }
+    }
+
+    #[derive(Default)]
+    struct Ring {
+        frames: VecDeque<(u64, Vec<u8>)>,
+        spare: Vec<Vec<u8>>,
+        capacity: usize,
+    }
+
+    /// A stage's end: the frames copied so far.
+    pub struct FrameReceiver {
+        shared: Arc<(Mutex<Ring>, Condvar)>,
+        current: Vec<u8>,
+        path: PathBuf,
+    }
+
+    impl FrameReceiver {
+        /// Binds the stage's socket and starts the thread that accepts
+        /// capture and copies every frame in.
+        pub fn bind(path: &Path, capacity: usize) -> Result<Self> {
+            let _ = std::fs::remove_file(path);
+            let listener =
+                UnixListener::bind(path).with_context(|| format!("binding {}", path.display()))?;
+            let shared = Arc::new((
+                Mutex::new(Ring {
+                    capacity: capacity.max(1),
+                    ..Default::default()
+                }),
+                Condvar::new(),
+            ));
+            let ring = shared.clone();
+            std::thread::spawn(move || {
+                let Ok((mut stream, _)) = listener.accept() else {
+                    return;
+                };
+                let mut head = [0u8; 16];
+                while stream.read_exact(&mut head).is_ok() {
+                    let seq = u64::from_ne_bytes(head[..8].try_into().expect("8 bytes"));
+                    let len = u64::from_ne_bytes(head[8..].try_into().expect("8 bytes")) as usize;
+                    let mut buf = ring
+                        .0
+                        .lock()
+                        .ok()
+                        .and_then(|mut r| r.spare.pop())
+                        .unwrap_or_default();
+                    buf.resize(len, 0);
+                    if stream.read_exact(&mut buf).is_err() {
+                        return;
+                    }
+                    let Ok(mut r) = ring.0.lock() else { return };
+                    if r.frames.len() == r.capacity
+                        && let Some((_, old)) = r.frames.pop_front()
+                    {
+                        r.spare.push(old);
+                    }
+                    r.frames.push_back((seq, buf));
+                    drop(r);
+                    ring.1.notify_all();
+                }
+            });
+            Ok(FrameReceiver {
+                shared,
+                current: Vec::new(),
+                path: path.to_owned(),
+            })
+        }
+
+        /// Frame `sequence` (waiting up to `timeout` for its copy to
+        /// complete); older frames are released.
+        pub fn take(&mut self, sequence: u64, timeout: Duration) -> Option<&[u8]> {
+            let until = Instant::now() + timeout;
+            let (lock, cond) = &*self.shared;
+            let mut r = lock.lock().ok()?;
+            loop {
+                while r.frames.front().is_some_and(|(s, _)| *s < sequence) {
+                    let (_, old) = r.frames.pop_front().expect("front exists");
+                    r.spare.push(old);
+                }
+                if let Some((s, _)) = r.frames.front() {
+                    if *s != sequence {
+                        return None;
+                    }
+                    let (_, buf) = r.frames.pop_front().expect("front exists");
+                    let old = std::mem::replace(&mut self.current, buf);
+                    r.spare.push(old);
+                    return Some(&self.current);
+                }
+                let left = until.checked_duration_since(Instant::now())?;
+                r = cond.wait_timeout(r, left).ok()?.0;
+            }
+        }
+    }
+
+    impl Drop for FrameReceiver {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
 }

@@ -5,7 +5,7 @@
 //! cleanly (SIGINT, then SIGKILL after a grace period), removes stale shared
 //! memory and prints per-stage and end-to-end latency.
 
-use super::run::{Percentiles, RunArgs, cached_database_at};
+use super::run::{Percentiles, ProcessUsage, RunArgs, Samples, cached_database_at};
 use crate::stages::PipelineConfig;
 use acch_ipc::{ResultMsg, STAGES, StageId, remove_stale_resources};
 use acch_pose::phi_error;
@@ -101,6 +101,37 @@ struct Summary {
     frame_bytes_published: u64,
     /// Dead iceoryx2 nodes cleaned up after the run (should be 0).
     stale_nodes_removed: usize,
+    /// `shm` (zero copy) or `copy` (frames through Unix sockets).
+    transport: String,
+    width: u32,
+    height: u32,
+    /// Frames requested that produced no result.
+    dropped: u64,
+    /// CPU and peak memory of every stage process.
+    processes: Vec<ProcessUsage>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    samples: Option<Samples>,
+}
+
+/// Ticks of user + system CPU of `pid` (/proc/PID/stat fields 14, 15).
+fn cpu_ticks(pid: u32) -> Option<u64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The command name may hold spaces; fields restart after its ')'.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    Some(f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?)
+}
+
+/// Peak resident set of `pid`, kB (VmHWM).
+fn peak_rss_kb(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// Runs the multi-process pipeline.
@@ -119,6 +150,13 @@ pub fn run(args: RunArgs) -> Result<()> {
     if let Some(f) = args.fps {
         cfg.fps = f;
     }
+    if let Some((w, h)) = args.resolution {
+        (cfg.width, cfg.height) = (w, h);
+    }
+    if let Some(t) = &args.transport {
+        cfg.transport.clone_from(t);
+    }
+    cfg.copies_frames()?;
     if !(cfg.fps.is_finite() && cfg.fps >= 0.0) {
         bail!("fps {} must be a number >= 0", cfg.fps);
     }
@@ -203,6 +241,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         .map_err(|e| anyhow!("starting the capture: {e:?}"))?;
 
     let t0 = Instant::now();
+    let ticks0: Vec<Option<u64>> = children.0.iter().map(|(_, c)| cpu_ticks(c.id())).collect();
     let mut got: Vec<ResultMsg> = Vec::with_capacity(cfg.frames as usize);
     let mut last = Instant::now();
     let stall = Duration::from_secs_f64(args.stall_timeout.max(1.0));
@@ -236,6 +275,25 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     let elapsed = t0.elapsed().as_secs_f64();
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    let processes: Vec<ProcessUsage> = children
+        .0
+        .iter()
+        .zip(&ticks0)
+        .map(|((id, c), t0)| {
+            let cpu_s = match (t0, cpu_ticks(c.id())) {
+                (Some(a), Some(b)) => b.saturating_sub(*a) as f64 / hz,
+                _ => 0.0,
+            };
+            ProcessUsage {
+                stage: id.name().into(),
+                cpu_s,
+                cpu_pct: 100.0 * cpu_s / elapsed.max(1e-9),
+                peak_rss_kb: peak_rss_kb(c.id()).unwrap_or(0),
+            }
+        })
+        .collect();
     children.stop(Duration::from_secs(5));
     drop(results);
     drop(ready);
@@ -245,7 +303,11 @@ pub fn run(args: RunArgs) -> Result<()> {
     if interrupted {
         eprintln!("acch run: interrupted");
     }
-    let summary = summarise(&cfg, &got, elapsed, stale_nodes_removed);
+    let mut summary = summarise(&cfg, &got, elapsed, stale_nodes_removed);
+    summary.processes = processes;
+    if args.samples {
+        summary.samples = Some(samples(&got));
+    }
     print_summary(&summary);
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&summary)? + "\n")
@@ -352,6 +414,56 @@ fn summarise(
         frame_reads_in_place: got.iter().map(|m| m.frame_reads_in_place).sum(),
         frame_bytes_published: bytes,
         stale_nodes_removed,
+        transport: cfg.transport.clone(),
+        width: cfg.width,
+        height: cfg.height,
+        dropped: cfg.frames.saturating_sub(got.len() as u64),
+        processes: Vec::new(),
+        samples: None,
+    }
+}
+
+/// Every frame's end-to-end, hop and processing times.
+fn samples(got: &[ResultMsg]) -> Samples {
+    let e2e_ns = got
+        .iter()
+        .map(|m| {
+            m.trail.stages[StageId::Seeding as usize]
+                .published_ns
+                .saturating_sub(m.trail.captured_ns)
+        })
+        .collect();
+    let mut hop_ns = Vec::new();
+    let mut process_ns = Vec::new();
+    for id in StageId::ALL {
+        let i = id as usize;
+        if let Some(up) = id.upstream() {
+            hop_ns.push((
+                id.name().to_owned(),
+                got.iter()
+                    .map(|m| {
+                        m.trail.stages[i]
+                            .received_ns
+                            .saturating_sub(m.trail.stages[up as usize].published_ns)
+                    })
+                    .collect(),
+            ));
+        }
+        process_ns.push((
+            id.name().to_owned(),
+            got.iter()
+                .map(|m| {
+                    m.trail.stages[i]
+                        .published_ns
+                        .saturating_sub(m.trail.stages[i].received_ns)
+                })
+                .collect(),
+        ));
+    }
+    Samples {
+        e2e_ns,
+        hop_ns,
+        process_ns,
     }
 }
 
@@ -372,12 +484,19 @@ fn print_summary(s: &Summary) {
         "accepted: mean |dphi| {:.2} deg, mean |dtheta| {:.2} deg",
         s.accepted_mean_phi_err_deg, s.accepted_mean_theta_err_deg
     );
-    println!(
-        "zero copy: {} of {} frame reads found the pixels at the capture's shared-memory offset; {:.1} MB of frames written once",
-        s.frame_reads_in_place,
-        s.frame_reads,
-        s.frame_bytes_published as f64 / 1e6
-    );
+    if s.transport == "copy" {
+        println!(
+            "copy transport: {} frame reads, each from the stage's own copy of the frame (written to 3 Unix sockets per frame)",
+            s.frame_reads
+        );
+    } else {
+        println!(
+            "zero copy: {} of {} frame reads found the pixels at the capture's shared-memory offset; {:.1} MB of frames written once",
+            s.frame_reads_in_place,
+            s.frame_reads,
+            s.frame_bytes_published as f64 / 1e6
+        );
+    }
     println!(
         "{:<14} {:>9} {:>9} {:>9} {:>9} {:>9}",
         "latency (ms)", "hop p50", "hop p99", "proc p50", "proc p99", "proc max"

@@ -1,5 +1,6 @@
 //! One module per subcommand: argument parsing and I/O around the stage crates.
 
+pub mod bench;
 pub mod common;
 pub mod estimate;
 pub mod eval;

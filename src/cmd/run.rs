@@ -62,6 +62,67 @@ pub struct RunArgs {
     /// Write the summary as JSON.
     #[arg(long, value_name = "FILE")]
     pub(crate) json: Option<PathBuf>,
+    /// Frame size of the synthetic camera, WIDTHxHEIGHT (default 640x480,
+    /// or the configuration's).
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    pub(crate) resolution: Option<(u32, u32)>,
+    /// How frames reach the stage processes: shm (zero copy) or copy (the
+    /// benchmark's baseline: through a Unix socket per stage).
+    #[arg(long)]
+    pub(crate) transport: Option<String>,
+    /// Also write every frame's latencies (ns) into the JSON summary.
+    #[arg(long, hide = true)]
+    pub(crate) samples: bool,
+}
+
+/// Parses `WIDTHxHEIGHT`.
+pub(crate) fn parse_resolution(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not WIDTHxHEIGHT"))?;
+    let num = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (16..=8192).contains(n))
+            .ok_or_else(|| format!("'{s}': sizes must be 16..8192 pixels"))
+    };
+    Ok((num(w)?, num(h)?))
+}
+
+/// CPU time and peak resident memory of one process over a run.
+#[derive(Serialize, Debug, Clone)]
+pub struct ProcessUsage {
+    /// Stage name (or "in-process").
+    pub stage: String,
+    /// CPU seconds (user + system) while frames streamed.
+    pub cpu_s: f64,
+    /// `cpu_s` over the streaming time, percent of one core.
+    pub cpu_pct: f64,
+    /// Peak resident set, kB (VmHWM / ru_maxrss).
+    pub peak_rss_kb: u64,
+}
+
+/// Every frame's latencies, nanoseconds (with `--samples`).
+#[derive(Serialize, Debug, Default)]
+pub struct Samples {
+    /// Captured -> final result, per frame.
+    pub e2e_ns: Vec<u64>,
+    /// Per stage: upstream published -> received (empty for capture and in
+    /// one process).
+    pub hop_ns: Vec<(String, Vec<u64>)>,
+    /// Per stage: compute time (received -> published; in one process the
+    /// stage function's time).
+    pub process_ns: Vec<(String, Vec<u64>)>,
+}
+
+/// User + system CPU seconds and peak RSS (kB) of this process.
+pub(crate) fn self_usage() -> (f64, u64) {
+    // SAFETY: getrusage fills the struct we pass.
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut ru) };
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
+    (secs(ru.ru_utime) + secs(ru.ru_stime), ru.ru_maxrss as u64)
 }
 
 /// Latency percentiles of one stage, milliseconds.
@@ -112,6 +173,14 @@ struct Summary {
     accepted_failure_rate: f64,
     all_failure_rate: f64,
     latency: Latency,
+    mode: &'static str,
+    width: u32,
+    height: u32,
+    /// Always 0: one thread processes every frame in turn.
+    dropped: u64,
+    processes: Vec<ProcessUsage>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    samples: Option<Samples>,
 }
 
 #[derive(Serialize)]
@@ -144,7 +213,13 @@ fn run_in_process(args: RunArgs) -> Result<()> {
         Some(path) => ViewDatabase::load(path)?,
         None => cached_database(&object, args.cache_dir.clone())?,
     };
-    let renderer = common::renderer(object.clone(), args.background, args.seed);
+    let (rw, rh) = args.resolution.unwrap_or((640, 480));
+    let renderer = crate::stages::sized_renderer(
+        object.clone(),
+        args.background,
+        args.seed,
+        crate::stages::sized_intrinsics(rw, rh),
+    );
     let trajectory = Trajectory::new(
         args.seed,
         if fps > 0.0 { fps } else { 30.0 },
@@ -180,6 +255,7 @@ fn run_in_process(args: RunArgs) -> Result<()> {
     } else {
         common::progress(frames, "frames")
     };
+    let (cpu0, _) = self_usage();
     let start = Instant::now();
     for i in 0..frames {
         if fps > 0.0 {
@@ -232,6 +308,28 @@ fn run_in_process(args: RunArgs) -> Result<()> {
     }
     bar.finish_and_clear();
     let elapsed = start.elapsed().as_secs_f64();
+    let (cpu1, peak_rss_kb) = self_usage();
+    let processes = vec![ProcessUsage {
+        stage: "in-process".into(),
+        cpu_s: cpu1 - cpu0,
+        cpu_pct: 100.0 * (cpu1 - cpu0) / elapsed.max(1e-9),
+        peak_rss_kb,
+    }];
+    let samples = args.samples.then(|| Samples {
+        e2e_ns: times[5].clone(),
+        hop_ns: Vec::new(),
+        process_ns: [
+            "capture",
+            "recognition",
+            "segmentation",
+            "pose",
+            "confidence",
+        ]
+        .iter()
+        .zip(&times)
+        .map(|(n, v)| (n.to_string(), v.clone()))
+        .collect(),
+    });
     let ratio = |a: u64, b: u64| if b == 0 { 0.0 } else { a as f64 / b as f64 };
     let [
         capture,
@@ -263,6 +361,12 @@ fn run_in_process(args: RunArgs) -> Result<()> {
             confidence: pct(confidence),
             processing: pct(processing),
         },
+        mode: "in-process",
+        width: w,
+        height: h,
+        dropped: 0,
+        processes,
+        samples,
     };
     print_summary(&summary);
     if let Some(path) = &args.json {

@@ -1,0 +1,477 @@
+//! `acch bench`: the latency benchmark. For every resolution and frame rate
+//! it runs the pipeline three ways in one invocation, one after the other on
+//! the same machine:
+//!
+//! - `shm`: the stage processes with frames in shared memory (`acch run`);
+//! - `in-process`: the same stage functions chained on one thread
+//!   (`acch run --in-process`), the compute floor;
+//! - `copy`: the same stage processes with every frame copied through a Unix
+//!   socket per pixel-reading stage (`acch run --transport copy`).
+//!
+//! Each run is a child `acch run --json FILE`; the benchmark reads their
+//! summaries (every frame's CLOCK_MONOTONIC trail) and writes one JSON
+//! report and a PNG of latency CDFs. End-to-end latency starts when capture
+//! publishes the frame (after rendering it), as in `acch run`.
+
+use crate::plot::draw_png;
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use plotters::prelude::*;
+use serde::Serialize;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Arguments of `acch bench`.
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Frames per run.
+    #[arg(long, default_value_t = 300)]
+    frames: u64,
+    /// Frame rates, comma-separated; 0 = free-running.
+    #[arg(long, value_delimiter = ',', default_value = "15,30,60,0")]
+    fps: Vec<f64>,
+    /// Frame sizes, comma-separated WIDTHxHEIGHT.
+    #[arg(long, value_delimiter = ',', default_value = "640x480,1280x720",
+          value_parser = super::run::parse_resolution)]
+    resolution: Vec<(u32, u32)>,
+    /// The JSON report.
+    #[arg(long, default_value = "bench/results/latency.json")]
+    json: PathBuf,
+    /// The plot: CDFs of per-stage compute, per-hop and end-to-end latency
+    /// of the headline configuration (640x480 at 30 fps when measured).
+    #[arg(long, default_value = "bench/results/latency.png")]
+    png: PathBuf,
+    /// Seed of the camera trajectory and the scene.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+/// Percentiles in milliseconds of nanosecond samples.
+fn pct_ms(v: &[u64]) -> Value {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    let at = |q: f64| -> f64 {
+        if s.is_empty() {
+            return 0.0;
+        }
+        s[((s.len() - 1) as f64 * q).round() as usize] as f64 / 1e6
+    };
+    json!({"p50_ms": at(0.5), "p90_ms": at(0.9), "p99_ms": at(0.99), "max_ms": at(1.0)})
+}
+
+fn q_ms(v: &[u64], q: f64) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    if s.is_empty() {
+        return 0.0;
+    }
+    s[((s.len() - 1) as f64 * q).round() as usize] as f64 / 1e6
+}
+
+/// A named series of nanosecond samples.
+type Series = (String, Vec<u64>);
+
+/// One run's raw samples and summary.
+struct RunResult {
+    mode: &'static str,
+    summary: Value,
+    e2e: Vec<u64>,
+    hops: Vec<(String, Vec<u64>)>,
+    process: Vec<(String, Vec<u64>)>,
+}
+
+fn series(v: &Value) -> Vec<(String, Vec<u64>)> {
+    v.as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|p| {
+                    let name = p.get(0)?.as_str()?.to_owned();
+                    let xs = p.get(1)?.as_array()?.iter().filter_map(Value::as_u64);
+                    Some((name, xs.collect()))
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn run_once(
+    args: &BenchArgs,
+    mode: &'static str,
+    (w, h): (u32, u32),
+    fps: f64,
+    tmp: &Path,
+) -> Result<RunResult> {
+    let out = tmp.join(format!("{mode}-{w}x{h}-{fps}.json"));
+    let exe = std::env::current_exe().context("locating the acch executable")?;
+    let mut cmd = Command::new(exe);
+    cmd.arg("run")
+        .args(["--frames", &args.frames.to_string()])
+        .args(["--fps", &fps.to_string()])
+        .args(["--resolution", &format!("{w}x{h}")])
+        .args(["--seed", &args.seed.to_string()])
+        .arg("--samples")
+        .arg("--json")
+        .arg(&out);
+    match mode {
+        "in-process" => {
+            cmd.arg("--in-process");
+        }
+        "copy" => {
+            cmd.args(["--transport", "copy"]);
+        }
+        _ => {
+            cmd.args(["--transport", "shm"]);
+        }
+    }
+    eprintln!(
+        "acch bench: {mode} {w}x{h} at {fps} fps, {} frames",
+        args.frames
+    );
+    let o = cmd
+        .stdout(std::process::Stdio::null())
+        .output()
+        .context("running acch run")?;
+    if !o.status.success() {
+        bail!(
+            "acch run ({mode} {w}x{h} {fps} fps) failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let text =
+        std::fs::read_to_string(&out).with_context(|| format!("reading {}", out.display()))?;
+    let _ = std::fs::remove_file(&out);
+    let mut summary: Value = serde_json::from_str(&text)?;
+    let samples = summary
+        .as_object_mut()
+        .and_then(|o| o.remove("samples"))
+        .ok_or_else(|| anyhow!("{mode}: the summary has no samples"))?;
+    let e2e = samples["e2e_ns"]
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_u64).collect())
+        .unwrap_or_default();
+    Ok(RunResult {
+        mode,
+        e2e,
+        hops: series(&samples["hop_ns"]),
+        process: series(&samples["process_ns"]),
+        summary,
+    })
+}
+
+/// One mode's figures.
+fn figures(r: &RunResult, frames: u64) -> Value {
+    let hops: serde_json::Map<String, Value> = r
+        .hops
+        .iter()
+        .map(|(n, v)| {
+            (
+                n.clone(),
+                json!({"p50_us": q_ms(v, 0.5) * 1e3, "p99_us": q_ms(v, 0.99) * 1e3,
+                       "max_us": q_ms(v, 1.0) * 1e3}),
+            )
+        })
+        .collect();
+    let compute: serde_json::Map<String, Value> = r
+        .process
+        .iter()
+        .map(|(n, v)| (n.clone(), pct_ms(v)))
+        .collect();
+    let hop_p99_us = r
+        .hops
+        .iter()
+        .map(|(_, v)| q_ms(v, 0.99) * 1e3)
+        .fold(0.0, f64::max);
+    let s = &r.summary;
+    let results = r.e2e.len() as u64;
+    json!({
+        "mode": r.mode,
+        "e2e_p50_ms": q_ms(&r.e2e, 0.5),
+        "e2e_p90_ms": q_ms(&r.e2e, 0.9),
+        "e2e_p99_ms": q_ms(&r.e2e, 0.99),
+        "e2e_max_ms": q_ms(&r.e2e, 1.0),
+        "hop_p99_us": hop_p99_us,
+        "hops": hops,
+        "compute": compute,
+        "throughput_fps": s["fps_achieved"],
+        "results": results,
+        "dropped": frames.saturating_sub(results),
+        "processes": s["processes"],
+        "frame_reads": s.get("frame_reads"),
+        "frame_reads_in_place": s.get("frame_reads_in_place"),
+    })
+}
+
+/// Where the processes' extra median latency comes from: the hops (sum of
+/// per-hop medians) and the stages' extra compute (sum over stages of the
+/// process median minus the in-process median; segmentation and pose
+/// re-quantise the frame as processes).
+fn breakdown(shm: &RunResult, inproc: &RunResult) -> Value {
+    let hops: f64 = shm.hops.iter().map(|(_, v)| q_ms(v, 0.5)).sum();
+    let mut per_stage = serde_json::Map::new();
+    let mut compute = 0.0;
+    for (name, v) in shm.process.iter().filter(|(n, _)| n != "capture") {
+        let floor = inproc
+            .process
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(0.0, |(_, w)| q_ms(w, 0.5));
+        let extra = q_ms(v, 0.5) - floor;
+        compute += extra;
+        per_stage.insert(name.clone(), json!(extra));
+    }
+    json!({"hops_p50_sum": hops, "extra_compute_p50_sum": compute, "extra_compute_by_stage": per_stage})
+}
+
+#[derive(Serialize)]
+struct Machine {
+    cpus: usize,
+    cpu_model: String,
+    kernel: String,
+}
+
+fn machine() -> Machine {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    Machine {
+        cpus: std::thread::available_parallelism().map_or(0, |n| n.get()),
+        cpu_model: cpuinfo
+            .lines()
+            .find_map(|l| l.strip_prefix("model name"))
+            .map(|l| l.trim_start_matches([' ', '\t', ':']).to_owned())
+            .unwrap_or_default(),
+        kernel: std::fs::read_to_string("/proc/sys/kernel/osrelease")
+            .unwrap_or_default()
+            .trim()
+            .to_owned(),
+    }
+}
+
+/// Runs `acch bench`.
+pub fn run(args: BenchArgs) -> Result<()> {
+    if args.fps.iter().any(|f| !(f.is_finite() && *f >= 0.0)) {
+        bail!("--fps: every rate must be a number >= 0");
+    }
+    let tmp = std::env::temp_dir().join(format!("acch-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+    let mut configs = Vec::new();
+    let mut plotted: Option<(String, Vec<RunResult>)> = None;
+    for &res in &args.resolution {
+        for &fps in &args.fps {
+            let runs = ["shm", "in-process", "copy"]
+                .into_iter()
+                .map(|m| run_once(&args, m, res, fps, &tmp))
+                .collect::<Result<Vec<_>>>()?;
+            let f: Vec<Value> = runs.iter().map(|r| figures(r, args.frames)).collect();
+            let (shm, inproc, copy) = (&f[0], &f[1], &f[2]);
+            let ratio = |a: &Value, b: &Value, k: &str| {
+                a[k].as_f64().unwrap_or(0.0) / b[k].as_f64().unwrap_or(0.0).max(1e-12)
+            };
+            let frame_hop = |v: &Value, k: &str| v["hops"]["recognition"][k].as_f64();
+            let label = format!("{}x{} at {}", res.0, res.1, fps_label(fps));
+            configs.push(json!({
+                "resolution": format!("{}x{}", res.0, res.1),
+                "fps": fps,
+                "frames": args.frames,
+                "e2e_p50_ms": shm["e2e_p50_ms"],
+                "e2e_p90_ms": shm["e2e_p90_ms"],
+                "e2e_p99_ms": shm["e2e_p99_ms"],
+                "e2e_max_ms": shm["e2e_max_ms"],
+                "hop_p99_us": shm["hop_p99_us"],
+                "dropped": shm["dropped"],
+                "throughput_fps": shm["throughput_fps"],
+                "overhead_vs_inprocess": ratio(shm, inproc, "e2e_p50_ms") - 1.0,
+                "overhead_vs_inprocess_p99": ratio(shm, inproc, "e2e_p99_ms") - 1.0,
+                "speedup_vs_copy": ratio(copy, shm, "e2e_p50_ms"),
+                "overhead_breakdown_ms": breakdown(&runs[0], &runs[1]),
+                "speedup_vs_copy_p99": ratio(copy, shm, "e2e_p99_ms"),
+                "frame_hop_p50_us": {"shm": frame_hop(shm, "p50_us"), "copy": frame_hop(copy, "p50_us")},
+                "frame_hop_p99_us": {"shm": frame_hop(shm, "p99_us"), "copy": frame_hop(copy, "p99_us")},
+                "modes": {"shm": shm, "in-process": inproc, "copy": copy},
+            }));
+            let headline = res == (640, 480) && fps == 30.0;
+            if plotted.is_none() || headline {
+                plotted = Some((label, runs));
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    let head = configs
+        .iter()
+        .find(|c| c["resolution"] == "640x480" && c["fps"].as_f64() == Some(30.0))
+        .or(configs.first())
+        .cloned()
+        .ok_or_else(|| anyhow!("nothing measured: give at least one --fps and --resolution"))?;
+    let mut report = json!({
+        "machine": machine(),
+        "command": std::env::args().collect::<Vec<_>>().join(" "),
+        "headline": format!("{} at {} fps", head["resolution"].as_str().unwrap_or(""), head["fps"]),
+        "targets": {"hop_p99_us": 50.0, "e2e_p99_ms": 15.0, "overhead_vs_inprocess": 0.10,
+                    "fps_without_drops": 60.0},
+        "configs": configs,
+    });
+    for k in [
+        "e2e_p50_ms",
+        "e2e_p99_ms",
+        "hop_p99_us",
+        "overhead_vs_inprocess",
+        "speedup_vs_copy",
+        "dropped",
+    ] {
+        report[k] = head[k].clone();
+    }
+    for p in [&args.json, &args.png] {
+        if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+        }
+    }
+    std::fs::write(&args.json, serde_json::to_string_pretty(&report)? + "\n")
+        .with_context(|| format!("writing {}", args.json.display()))?;
+    if let Some((label, runs)) = &plotted {
+        plot(&args.png, label, runs)?;
+    }
+    print_table(&report);
+    eprintln!(
+        "acch bench: wrote {} and {}",
+        args.json.display(),
+        args.png.display()
+    );
+    Ok(())
+}
+
+fn fps_label(fps: f64) -> String {
+    if fps > 0.0 {
+        format!("{fps} fps")
+    } else {
+        "free-running".into()
+    }
+}
+
+fn print_table(report: &Value) {
+    println!(
+        "{:<10} {:>6} {:>8} {:>8} {:>9} {:>8} {:>9} {:>8} {:>7}",
+        "size",
+        "fps",
+        "e2e p50",
+        "e2e p99",
+        "hop p99",
+        "fps got",
+        "vs 1-proc",
+        "vs copy",
+        "dropped"
+    );
+    for c in report["configs"].as_array().into_iter().flatten() {
+        println!(
+            "{:<10} {:>6} {:>6.2}ms {:>6.2}ms {:>7.0}us {:>8.1} {:>+8.0}% {:>7.2}x {:>7}",
+            c["resolution"].as_str().unwrap_or(""),
+            c["fps"].as_f64().map_or("?".into(), fps_short),
+            c["e2e_p50_ms"].as_f64().unwrap_or(0.0),
+            c["e2e_p99_ms"].as_f64().unwrap_or(0.0),
+            c["hop_p99_us"].as_f64().unwrap_or(0.0),
+            c["throughput_fps"].as_f64().unwrap_or(0.0),
+            100.0 * c["overhead_vs_inprocess"].as_f64().unwrap_or(0.0),
+            c["speedup_vs_copy"].as_f64().unwrap_or(0.0),
+            c["dropped"]
+        );
+    }
+}
+
+fn fps_short(f: f64) -> String {
+    if f > 0.0 {
+        format!("{f}")
+    } else {
+        "free".into()
+    }
+}
+
+/// CDFs (latency against fraction of frames) of the headline configuration:
+/// left, end to end in the three modes; middle, per-hop latency (shm and
+/// copy); right, per-stage compute time (shm processes).
+fn plot(path: &Path, label: &str, runs: &[RunResult]) -> Result<()> {
+    let e = |e: plotters::drawing::DrawingAreaErrorKind<_>| anyhow!("plot: {e:?}");
+    draw_png(path, (1500, 500), |root| {
+        let areas = root.split_evenly((1, 3));
+        let mut panels: Vec<(String, bool, Vec<Series>)> = Vec::new();
+        panels.push((
+            format!("end to end, {label}"),
+            false,
+            runs.iter()
+                .map(|r| (r.mode.to_string(), r.e2e.clone()))
+                .collect(),
+        ));
+        let mut hops = Vec::new();
+        for r in runs.iter().filter(|r| r.mode != "in-process") {
+            for (n, v) in &r.hops {
+                hops.push((format!("{} {}", r.mode, n), v.clone()));
+            }
+        }
+        panels.push(("per hop (publish -> awake)".into(), true, hops));
+        panels.push((
+            "per stage compute (shm processes)".into(),
+            false,
+            runs[0]
+                .process
+                .iter()
+                .filter(|(n, _)| n != "capture")
+                .cloned()
+                .collect(),
+        ));
+        for (area, (title, micro, lines)) in areas.iter().zip(panels) {
+            let scale = if micro { 1e3 } else { 1e6 };
+            let xmax = lines
+                .iter()
+                .flat_map(|(_, v)| v.iter())
+                .map(|&x| x as f64 / scale)
+                .fold(0.0, f64::max)
+                .max(1e-3)
+                * 1.05;
+            let xmin = lines
+                .iter()
+                .flat_map(|(_, v)| v.iter())
+                .map(|&x| x as f64 / scale)
+                .fold(f64::INFINITY, f64::min)
+                .clamp(1e-3, xmax / 2.0)
+                * 0.8;
+            let mut chart = ChartBuilder::on(area)
+                .caption(&title, ("sans-serif", 18))
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(45)
+                .build_cartesian_2d((xmin..xmax).log_scale(), 0.0f64..1.0)
+                .map_err(e)?;
+            chart
+                .configure_mesh()
+                .x_desc(if micro { "µs (log)" } else { "ms (log)" })
+                .y_desc("fraction of frames")
+                .draw()
+                .map_err(e)?;
+            for (i, (name, v)) in lines.iter().enumerate() {
+                let mut s: Vec<f64> = v.iter().map(|&x| (x as f64 / scale).max(xmin)).collect();
+                s.sort_by(f64::total_cmp);
+                let n = s.len().max(1) as f64;
+                let colour = Palette99::pick(i).to_rgba();
+                let style = if name.starts_with("copy") {
+                    colour.stroke_width(1)
+                } else {
+                    colour.stroke_width(2)
+                };
+                chart
+                    .draw_series(LineSeries::new(
+                        s.iter().enumerate().map(|(k, &x)| (x, (k + 1) as f64 / n)),
+                        style,
+                    ))
+                    .map_err(e)?
+                    .label(name.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 15, y)], colour));
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerRight)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 11))
+                .draw()
+                .map_err(e)?;
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,55 @@
+//! `acch bench` on a tiny configuration: it runs the three pipelines and
+//! writes a report with the headline keys. No timing is asserted: a
+//! benchmark reports figures.
+
+use std::process::Command;
+
+#[test]
+fn bench_writes_the_report_keys() {
+    let dir = std::env::temp_dir().join(format!("acch-bench-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("latency.json");
+    let png = dir.join("latency.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args([
+            "bench",
+            "--frames",
+            "20",
+            "--fps",
+            "30",
+            "--resolution",
+            "640x480",
+        ])
+        .arg("--json")
+        .arg(&json)
+        .arg("--png")
+        .arg(&png)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run acch bench");
+    assert!(
+        out.status.success(),
+        "acch bench failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in [
+        "e2e_p50_ms",
+        "e2e_p99_ms",
+        "hop_p99_us",
+        "overhead_vs_inprocess",
+        "speedup_vs_copy",
+        "dropped",
+    ] {
+        assert!(report[key].is_number(), "no number '{key}' in {report}");
+    }
+    let config = &report["configs"][0];
+    for mode in ["shm", "in-process", "copy"] {
+        assert!(config["modes"][mode]["e2e_p99_ms"].is_number(), "{mode}");
+        assert!(config["modes"][mode]["processes"].is_array(), "{mode}");
+    }
+    assert!(std::fs::metadata(&png).unwrap().len() > 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
