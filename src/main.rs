@@ -4,6 +4,7 @@ mod cmd;
 mod model;
 mod pipeline;
 mod plot;
+mod realtime;
 mod stages;
 
 use clap::{Parser, Subcommand};

@@ -118,4 +118,19 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
         within as f64 >= 0.9 * compared as f64,
         "rotation error > 15 deg on more than 10 %: {r}"
     );
+    // The fused pose: present from the first accepted estimate on, and
+    // tracking the truth.
+    let fused = r["fused"].as_u64().unwrap();
+    assert!(fused >= seeds, "fewer fused poses than seeds: {r}");
+    let fused_within = r["fused_within_15deg"].as_u64().unwrap();
+    assert!(
+        fused_within as f64 >= 0.9 * fused as f64,
+        "fused rotation error > 15 deg on more than 10 %: {r}"
+    );
+    let single = r["median_err_deg"].as_f64().unwrap();
+    let fused_median = r["fused_median_err_deg"].as_f64().unwrap();
+    assert!(
+        fused_median <= single * 1.5,
+        "fused median {fused_median:.2} deg far above single-frame {single:.2}: {r}"
+    );
 }

@@ -52,6 +52,13 @@ def main():
         if r is None or r.get("truth") is None:
             continue
         errors.append(angle_deg(seed["rotation_xyzw"], r["truth"]["rotation_xyzw"]))
+    # The pose fused over time (carried by the arm's motion): its rotation
+    # against the truth, on every frame once the filter has started.
+    fused_errors = [
+        angle_deg(r["fused"]["rotation_xyzw"], r["truth"]["rotation_xyzw"])
+        for r in results.values()
+        if r.get("fused") is not None and r.get("truth") is not None
+    ]
     accepted = sum(1 for r in results.values() if r["accepted"])
     rejected_with_seed = sum(1 for r in results.values() if not r["accepted"] and r.get("seed") is not None)
     print(json.dumps({
@@ -62,6 +69,9 @@ def main():
         "compared": len(errors),
         "within_15deg": sum(1 for e in errors if e <= 15.0),
         "median_err_deg": sorted(errors)[len(errors) // 2] if errors else None,
+        "fused": len(fused_errors),
+        "fused_within_15deg": sum(1 for e in fused_errors if e <= 15.0),
+        "fused_median_err_deg": sorted(fused_errors)[len(fused_errors) // 2] if fused_errors else None,
     }), flush=True)
 
 

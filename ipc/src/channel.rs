@@ -31,11 +31,12 @@ pub struct Qos {
     pub max_frame_bytes: usize,
 }
 
-/// Subscribers of the frame service: recognition, segmentation, pose and
-/// one spare (a viewer or recorder).
-const FRAME_SUBSCRIBERS: usize = 4;
-/// Subscribers of a result service: the next stage, the launcher, one spare.
-const RESULT_SUBSCRIBERS: usize = 3;
+/// Subscribers of the frame service: recognition, segmentation, pose, the
+/// viewer and the recorder.
+const FRAME_SUBSCRIBERS: usize = 5;
+/// Subscribers of a result service: the next stage, the launcher, the
+/// viewer and the recorder.
+const RESULT_SUBSCRIBERS: usize = 4;
 /// Result samples queued per subscriber before the oldest is dropped.
 const RESULT_BUFFER: usize = 8;
 
@@ -276,6 +277,34 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         // SAFETY: every byte was written above.
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
+        let n = sample.send().map_err(err("send"))?;
+        self.notifier.notify().map_err(err("notify"))?;
+        Ok(n)
+    }
+
+    /// Loans `len` bytes of shared memory and lets `write` produce the
+    /// payload and the header right there (no staging buffer, no copy),
+    /// then sends and notifies. Bytes `write` leaves alone keep what an
+    /// earlier sample in the same slot held. Returns the number of
+    /// subscribers reached.
+    pub fn send_in_place(
+        &self,
+        len: usize,
+        write: impl FnOnce(&mut [u8], &mut H),
+    ) -> Result<usize, IpcError> {
+        let mut sample = self.publisher.loan_slice_uninit(len).map_err(err("loan"))?;
+        let dst = sample.payload_mut();
+        // SAFETY: the slot lies in a shared-memory segment the kernel
+        // zero-filled when it was mapped, so each of its bytes holds either
+        // that zero or what an earlier sample wrote: all are initialised u8
+        // (which has no invalid values); iceoryx2 types them MaybeUninit
+        // only because its API is generic over payload types.
+        let bytes = unsafe { std::slice::from_raw_parts_mut(dst.as_mut_ptr().cast::<u8>(), len) };
+        let mut header = H::default();
+        write(bytes, &mut header);
+        // SAFETY: as above, every byte is initialised.
+        let mut sample = unsafe { sample.assume_init() };
+        *sample.user_header_mut() = header;
         let n = sample.send().map_err(err("send"))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)

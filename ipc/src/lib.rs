@@ -14,7 +14,8 @@ pub mod zenoh_io;
 
 pub use channel::{FrameHistory, FrameSample, Input, Ipc, Names, Output, Qos, ResultSample, Svc};
 pub use msg::{
-    FrameHeader, ResultMsg, STAGES, StageId, StageTimes, Trail, Truth, now_ns, pixel_format,
+    ArmPose, FrameHeader, Fused, Observer, ResultMsg, STAGES, StageId, StageTimes, Trail, Truth,
+    now_ns, pixel_format,
 };
 pub use shm::ShmLocator;
 pub use zenoh_io::{SeedPublisher, ZenohConfig, open_session};

@@ -69,6 +69,40 @@ impl StageId {
     }
 }
 
+/// Processes beside the pipeline that watch it (`acch run --rerun`,
+/// `--record`): off the hot path, they read the same services and drop what
+/// they cannot keep up with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Observer {
+    /// Logs to rerun.
+    Viz,
+    /// Writes MCAP.
+    Record,
+}
+
+impl Observer {
+    /// Every observer.
+    pub const ALL: [Observer; 2] = [Observer::Viz, Observer::Record];
+
+    /// Its name on the command line (`acch stage viz`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Observer::Viz => "viz",
+            Observer::Record => "record",
+        }
+    }
+
+    /// Parses an observer name.
+    pub fn from_name(name: &str) -> Option<Observer> {
+        Self::ALL.into_iter().find(|o| o.name() == name)
+    }
+
+    /// The event id it announces readiness with (after the stages' ids).
+    pub fn ready_id(self) -> usize {
+        STAGES + self as usize
+    }
+}
+
 /// When one stage saw one frame: CLOCK_MONOTONIC ns, 0 = not reached.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
@@ -112,6 +146,44 @@ pub struct Truth {
     pub camera_from_object: [f64; 12],
 }
 
+/// Where the arm says the camera is (its forward kinematics), sent with
+/// every frame so later stages can fuse estimates over the camera's known
+/// motion.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct ArmPose {
+    /// 1 when the arm reported a pose for this frame.
+    pub valid: u64,
+    /// `world_from_camera` in the arm's base frame, column-major 3x4
+    /// (rotation columns then translation), OpenCV camera axes.
+    pub world_from_camera: [f64; 12],
+}
+
+/// The pose fused over time by the seeding stage (estimates accepted so
+/// far, carried through the arm's known motion).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct Fused {
+    /// 1 when the filter holds a pose (after its first accepted estimate).
+    pub valid: u64,
+    /// What this frame's estimate did to the filter: 0 none (no accepted
+    /// estimate), 1 started it, 2 fused, 3 gated as an outlier, 4 restarted
+    /// it from agreeing outliers.
+    pub outcome: u64,
+    /// Fused θ, φ (degrees).
+    pub view_deg: [f64; 2],
+    /// Row-major 2x2 covariance of (θ, φ), degrees².
+    pub view_covariance_deg2: [f64; 4],
+    /// Fused `camera_from_object`, column-major 3x4.
+    pub camera_from_object: [f64; 12],
+    /// Row-major 3x3 rotation covariance, radians² (camera frame).
+    pub rotation_covariance: [f64; 9],
+    /// Estimates fused since the filter (re)started.
+    pub fused: u64,
+    /// Frames predicted since the last fused estimate.
+    pub since_update: u64,
+}
+
 /// The user header of a frame sample; the pixels are the `[u8]` payload.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
@@ -132,6 +204,8 @@ pub struct FrameHeader {
     pub intrinsics: [f64; 4],
     /// Ground truth when known.
     pub truth: Truth,
+    /// The arm's camera pose when known.
+    pub arm: ArmPose,
     /// Where the capture process wrote the pixels: hash of the shared-memory
     /// file name and the offset inside it (see [`crate::shm_location`]);
     /// readers compare with where they find them.
@@ -157,6 +231,8 @@ pub struct ResultMsg {
     pub intrinsics: [f64; 4],
     /// Ground truth of the frame.
     pub truth: Truth,
+    /// The arm's camera pose.
+    pub arm: ArmPose,
     /// 1 when recognition found the object.
     pub found: u64,
     /// Detection window x, y, width, height (pixels).
@@ -189,6 +265,8 @@ pub struct ResultMsg {
     pub seed_rotation_xyzw: [f64; 4],
     /// Seed covariance, row-major 6x6 over (tx, ty, tz, rx, ry, rz).
     pub seed_covariance: [[f64; 6]; 6],
+    /// The pose fused over time (seeding stage).
+    pub fused: Fused,
     /// Frame reads by stages from shared memory.
     pub frame_reads: u64,
     /// Of those, reads that found the pixels at the very shared-memory
@@ -207,6 +285,7 @@ impl ResultMsg {
             height: h.height,
             intrinsics: h.intrinsics,
             truth: h.truth,
+            arm: h.arm,
             trail: h.trail,
             ..Default::default()
         }

@@ -66,4 +66,15 @@ impl ShmLocator {
         self.reload();
         find(&self.maps)
     }
+
+    /// Whether `addr` lies at `expected` (file hash, offset). On a mismatch
+    /// the memory map is read again first: a mapping of a restarted
+    /// publisher can reuse the addresses of one that is gone.
+    pub fn is_at(&mut self, addr: usize, expected: (u64, u64)) -> bool {
+        if self.locate(addr) == Some(expected) {
+            return true;
+        }
+        self.reload();
+        self.locate(addr) == Some(expected)
+    }
 }

@@ -6,7 +6,8 @@
 //! - `in-process`: the same stage functions chained on one thread
 //!   (`acch run --in-process`), the compute floor;
 //! - `copy`: the same stage processes with every frame copied through a Unix
-//!   socket per pixel-reading stage (`acch run --transport copy`).
+//!   socket to recognition, the one stage that reads pixels (`acch run
+//!   --transport copy`).
 //!
 //! Each run is a child `acch run --json FILE`; the benchmark reads their
 //! summaries (every frame's CLOCK_MONOTONIC trail) and writes one JSON
@@ -45,6 +46,10 @@ pub struct BenchArgs {
     /// Seed of the camera trajectory and the scene.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Also run the processes under SCHED_FIFO at this priority (mode
+    /// `shm-rt`, `acch run --rt-priority`); needs CAP_SYS_NICE.
+    #[arg(long, value_name = "PRIORITY")]
+    rt_priority: Option<u8>,
 }
 
 /// Percentiles in milliseconds of nanosecond samples.
@@ -119,6 +124,10 @@ fn run_once(
         }
         "copy" => {
             cmd.args(["--transport", "copy"]);
+        }
+        "shm-rt" => {
+            let p = args.rt_priority.unwrap_or(1);
+            cmd.args(["--transport", "shm", "--rt-priority", &p.to_string()]);
         }
         _ => {
             cmd.args(["--transport", "shm"]);
@@ -204,8 +213,8 @@ fn figures(r: &RunResult, frames: u64) -> Value {
 
 /// Where the processes' extra median latency comes from: the hops (sum of
 /// per-hop medians) and the stages' extra compute (sum over stages of the
-/// process median minus the in-process median; segmentation and pose
-/// re-quantise the frame as processes).
+/// process median minus the in-process median: segmentation and pose copy
+/// recognition's palette indices and cell counts out of shared memory).
 fn breakdown(shm: &RunResult, inproc: &RunResult) -> Value {
     let hops: f64 = shm.hops.iter().map(|(_, v)| q_ms(v, 0.5)).sum();
     let mut per_stage = serde_json::Map::new();
@@ -257,18 +266,25 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut plotted: Option<(String, Vec<RunResult>)> = None;
     for &res in &args.resolution {
         for &fps in &args.fps {
-            let runs = ["shm", "in-process", "copy"]
-                .into_iter()
+            let modes: &[&'static str] = if args.rt_priority.is_some() {
+                &["shm", "in-process", "copy", "shm-rt"]
+            } else {
+                &["shm", "in-process", "copy"]
+            };
+            let runs = modes
+                .iter()
                 .map(|m| run_once(&args, m, res, fps, &tmp))
                 .collect::<Result<Vec<_>>>()?;
             let f: Vec<Value> = runs.iter().map(|r| figures(r, args.frames)).collect();
             let (shm, inproc, copy) = (&f[0], &f[1], &f[2]);
+            let rt = f.get(3);
             let ratio = |a: &Value, b: &Value, k: &str| {
                 a[k].as_f64().unwrap_or(0.0) / b[k].as_f64().unwrap_or(0.0).max(1e-12)
             };
             let frame_hop = |v: &Value, k: &str| v["hops"]["recognition"][k].as_f64();
             let label = format!("{}x{} at {}", res.0, res.1, fps_label(fps));
-            configs.push(json!({
+            let mut mode_figures = json!({"shm": shm, "in-process": inproc, "copy": copy});
+            let mut config = json!({
                 "resolution": format!("{}x{}", res.0, res.1),
                 "fps": fps,
                 "frames": args.frames,
@@ -286,8 +302,22 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 "speedup_vs_copy_p99": ratio(copy, shm, "e2e_p99_ms"),
                 "frame_hop_p50_us": {"shm": frame_hop(shm, "p50_us"), "copy": frame_hop(copy, "p50_us")},
                 "frame_hop_p99_us": {"shm": frame_hop(shm, "p99_us"), "copy": frame_hop(copy, "p99_us")},
-                "modes": {"shm": shm, "in-process": inproc, "copy": copy},
-            }));
+            });
+            if let Some(rt) = rt {
+                mode_figures["shm-rt"] = rt.clone();
+                config["realtime"] = json!({
+                    "priority": args.rt_priority,
+                    "e2e_p50_ms": rt["e2e_p50_ms"],
+                    "e2e_p99_ms": rt["e2e_p99_ms"],
+                    "hop_p99_us": rt["hop_p99_us"],
+                    "dropped": rt["dropped"],
+                    "overhead_vs_inprocess": ratio(rt, inproc, "e2e_p50_ms") - 1.0,
+                    "overhead_vs_inprocess_p99": ratio(rt, inproc, "e2e_p99_ms") - 1.0,
+                    "speedup_vs_copy": ratio(copy, rt, "e2e_p50_ms"),
+                });
+            }
+            config["modes"] = mode_figures;
+            configs.push(config);
             let headline = res == (640, 480) && fps == 30.0;
             if plotted.is_none() || headline {
                 plotted = Some((label, runs));
@@ -319,6 +349,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     ] {
         report[k] = head[k].clone();
     }
+    if let Some(rt) = head.get("realtime") {
+        report["realtime"] = rt.clone();
+    }
     for p in [&args.json, &args.png] {
         if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
@@ -348,7 +381,7 @@ fn fps_label(fps: f64) -> String {
 
 fn print_table(report: &Value) {
     println!(
-        "{:<10} {:>6} {:>8} {:>8} {:>9} {:>8} {:>9} {:>8} {:>7}",
+        "{:<10} {:>6} {:>8} {:>8} {:>9} {:>8} {:>9} {:>8} {:>7} {:>10} {:>10}",
         "size",
         "fps",
         "e2e p50",
@@ -357,11 +390,13 @@ fn print_table(report: &Value) {
         "fps got",
         "vs 1-proc",
         "vs copy",
-        "dropped"
+        "dropped",
+        "rt e2e p99",
+        "rt hop p99"
     );
     for c in report["configs"].as_array().into_iter().flatten() {
         println!(
-            "{:<10} {:>6} {:>6.2}ms {:>6.2}ms {:>7.0}us {:>8.1} {:>+8.0}% {:>7.2}x {:>7}",
+            "{:<10} {:>6} {:>6.2}ms {:>6.2}ms {:>7.0}us {:>8.1} {:>+8.0}% {:>7.2}x {:>7} {:>10} {:>10}",
             c["resolution"].as_str().unwrap_or(""),
             c["fps"].as_f64().map_or("?".into(), fps_short),
             c["e2e_p50_ms"].as_f64().unwrap_or(0.0),
@@ -370,7 +405,13 @@ fn print_table(report: &Value) {
             c["throughput_fps"].as_f64().unwrap_or(0.0),
             100.0 * c["overhead_vs_inprocess"].as_f64().unwrap_or(0.0),
             c["speedup_vs_copy"].as_f64().unwrap_or(0.0),
-            c["dropped"]
+            c["dropped"],
+            c["realtime"]["e2e_p99_ms"]
+                .as_f64()
+                .map_or("-".into(), |v| format!("{v:.2}ms")),
+            c["realtime"]["hop_p99_us"]
+                .as_f64()
+                .map_or("-".into(), |v| format!("{v:.0}us")),
         );
     }
 }

@@ -44,6 +44,19 @@ pub struct RunArgs {
     /// Camera frame rate; 0 runs free (default 30, or the configuration's).
     #[arg(long)]
     pub(crate) fps: Option<f64>,
+    /// Frame source: synthetic, folder:DIR (images and labels.csv) or
+    /// mcap:FILE (replays an `acch run --record` recording).
+    #[arg(long, value_name = "SOURCE")]
+    pub(crate) source: Option<String>,
+    /// Run every process under SCHED_FIFO at this priority (1..=90): wake-ups
+    /// preempt other work, which keeps hop and end-to-end tails short on a
+    /// loaded machine. Needs CAP_SYS_NICE or an rtprio limit.
+    #[arg(long, value_name = "PRIORITY")]
+    pub(crate) rt_priority: Option<u8>,
+    /// Pace of an mcap: replay: recorded (the recording's frame times) or
+    /// free (as fast as the pipeline takes frames).
+    #[arg(long, value_name = "PACE")]
+    pub(crate) replay: Option<String>,
     /// Pipeline configuration (TOML; every key is listed in the README).
     #[arg(long, value_name = "FILE")]
     pub(crate) config: Option<PathBuf>,
@@ -53,6 +66,10 @@ pub struct RunArgs {
     /// Give up when no result arrives for this many seconds.
     #[arg(long, default_value_t = 20.0)]
     pub(crate) stall_timeout: f64,
+    /// Sample every process's resident memory this often (seconds) into
+    /// the summary's `rss`.
+    #[arg(long, default_value_t = 10.0, value_name = "SECS")]
+    pub(crate) rss_every: f64,
     /// Seed of the camera trajectory and the scene.
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
@@ -70,6 +87,14 @@ pub struct RunArgs {
     /// benchmark's baseline: through a Unix socket per stage).
     #[arg(long)]
     pub(crate) transport: Option<String>,
+    /// Log what the pipeline sees to rerun from a `viz` process beside it:
+    /// save:FILE.rrd, spawn (starts a viewer) or connect:URL.
+    #[arg(long, value_name = "SINK")]
+    pub(crate) rerun: Option<String>,
+    /// Record every frame and result to this MCAP file from a `record`
+    /// process beside the pipeline.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub(crate) record: Option<PathBuf>,
     /// Also write every frame's latencies (ns) into the JSON summary.
     #[arg(long, hide = true)]
     pub(crate) samples: bool,
@@ -197,6 +222,15 @@ struct Latency {
 /// Runs `acch run`.
 pub fn run(args: RunArgs) -> Result<()> {
     if args.in_process {
+        if args.source.is_some()
+            || args.rerun.is_some()
+            || args.record.is_some()
+            || args.rt_priority.is_some()
+        {
+            bail!(
+                "--source, --rerun, --record and --rt-priority need the multi-process pipeline (drop --in-process)"
+            );
+        }
         return run_in_process(args);
     }
     super::launch::run(args)

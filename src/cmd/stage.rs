@@ -2,7 +2,7 @@
 //! (started by `acch run`; can be started by hand with the same config).
 
 use crate::stages::{self, PipelineConfig};
-use acch_ipc::StageId;
+use acch_ipc::{Observer, StageId};
 use anyhow::{Result, anyhow};
 use clap::Args;
 use std::path::PathBuf;
@@ -10,7 +10,8 @@ use std::path::PathBuf;
 /// Arguments of `acch stage`.
 #[derive(Args)]
 pub struct StageArgs {
-    /// capture, recognition, segmentation, pose, confidence or seeding.
+    /// capture, recognition, segmentation, pose, confidence or seeding; or
+    /// an observer: viz (rerun) or record (MCAP).
     name: String,
     /// Pipeline configuration (TOML), the one the launcher wrote.
     #[arg(long, value_name = "FILE")]
@@ -20,6 +21,12 @@ pub struct StageArgs {
 /// Runs `acch stage`.
 pub fn run(args: StageArgs) -> Result<()> {
     let cfg = PipelineConfig::load(&args.config)?;
+    if let Some(o) = Observer::from_name(&args.name) {
+        return match o {
+            Observer::Viz => super::viz::run(&cfg),
+            Observer::Record => super::record::run(&cfg),
+        };
+    }
     let id =
         StageId::from_name(&args.name).ok_or_else(|| anyhow!("unknown stage '{}'", args.name))?;
     let (w, h) = stages::frame_size(&cfg)?;
@@ -27,7 +34,7 @@ pub fn run(args: StageArgs) -> Result<()> {
         StageId::Capture => stages::run_capture(&cfg),
         StageId::Recognition => stages::run_stage(&cfg, stages::Recognition::new(&cfg, w, h)?),
         StageId::Segmentation => stages::run_stage(&cfg, stages::Segmentation::new(&cfg, w, h)?),
-        StageId::Pose => stages::run_stage(&cfg, stages::Pose::new(&cfg)?),
+        StageId::Pose => stages::run_stage(&cfg, stages::Pose::new(&cfg, w, h)?),
         StageId::Confidence => stages::run_stage(&cfg, stages::Confidence::new(&cfg)?),
         StageId::Seeding => stages::run_stage(&cfg, stages::Seeding::new(&cfg)?),
     }

@@ -36,7 +36,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// Backgrounds of the protocol: (reported name, renderer background).
-const BACKGROUNDS: [(&str, &str); 4] = [
+pub(super) const BACKGROUNDS: [(&str, &str); 4] = [
     ("A", "A"),
     ("B", "B"),
     ("C", "C"),

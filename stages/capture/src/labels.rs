@@ -142,7 +142,12 @@ fn split_csv(line: &str) -> Result<Vec<String>, String> {
 pub fn read_labels(path: impl AsRef<Path>) -> Result<Vec<LabelRow>, CaptureError> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path).map_err(|e| CaptureError::io(path, e))?;
-    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    parse_labels(&text, path)
+}
+
+/// Parses the text of a labels file; `path` only names it in errors.
+pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let err = |line: usize, reason: String| CaptureError::Labels {
         path: path.to_path_buf(),
         line,

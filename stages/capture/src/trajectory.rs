@@ -11,14 +11,18 @@ use crate::camera::{check_distance, wrap_deg};
 use crate::{CaptureError, ViewPose};
 
 /// A seeded, infinitely long, smooth camera path: elevation oscillates inside
-/// [45.5, 89.5] deg as a sum of two slow sinusoids; azimuth drifts at a steady
-/// rate plus a slow sinusoidal sway and wraps through 360. Speeds stay below
-/// about 10 deg/s in θ and 30 deg/s in φ, so consecutive frames at 30 fps are
-/// close. The distance is constant.
+/// a band ([45.5, 89.5] deg for [`Trajectory::new`], the database's range;
+/// any band with [`Trajectory::with_elevation`]) as a sum of two slow
+/// sinusoids; azimuth drifts at a steady rate plus a slow sinusoidal sway and
+/// wraps through 360. Speeds stay below about 10 deg/s in θ (scaled by the
+/// band's width over 44°) and 30 deg/s in φ, so consecutive frames at 30 fps
+/// are close. The distance is constant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     fps: f64,
     distance: f64,
+    theta_mid: f64,
+    theta_amp: [f64; 2],
     theta_freq: [f64; 2],
     theta_phase: [f64; 2],
     phi0: f64,
@@ -42,14 +46,45 @@ pub struct TrajectoryFrame {
     pub camera_motion: DAffine3,
 }
 
-const THETA_MID: f64 = 67.5;
+/// Amplitudes of the two elevation sinusoids in the default band, whose
+/// half-width is [`DEFAULT_HALF_BAND`]; other bands scale them.
 const THETA_AMP: [f64; 2] = [17.5, 4.5];
+const DEFAULT_HALF_BAND: f64 = 22.0;
 const PHI_SWAY: f64 = 25.0;
 
 impl Trajectory {
+    /// Elevation band of [`Trajectory::new`], degrees: inside the paper
+    /// grid's 45..90.
+    pub const DEFAULT_THETA_BAND: (f64, f64) = (45.5, 89.5);
+
     /// A trajectory drawn from `seed`, sampled at `fps` frames per second, at
-    /// camera distance `distance` (bounding radii).
+    /// camera distance `distance` (bounding radii), elevation in
+    /// [`Trajectory::DEFAULT_THETA_BAND`].
     pub fn new(seed: u64, fps: f64, distance: f64) -> Result<Self, CaptureError> {
+        let (lo, hi) = Self::DEFAULT_THETA_BAND;
+        Self::with_elevation(seed, fps, distance, lo, hi)
+    }
+
+    /// As [`Trajectory::new`], with the elevation sweeping
+    /// `[theta_min_deg, theta_max_deg]` (0 <= min < max <= 90); the same seed
+    /// gives the same path shape in any band. A real arm's camera passes
+    /// through views below a database's range: a band below 45° makes the
+    /// path do so too.
+    pub fn with_elevation(
+        seed: u64,
+        fps: f64,
+        distance: f64,
+        theta_min_deg: f64,
+        theta_max_deg: f64,
+    ) -> Result<Self, CaptureError> {
+        let (lo, hi) = (theta_min_deg, theta_max_deg);
+        if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 90.0) {
+            return Err(CaptureError::InvalidTrajectory {
+                reason: format!(
+                    "elevation band [{lo}, {hi}] deg must satisfy 0 <= min < max <= 90"
+                ),
+            });
+        }
         if !(fps.is_finite() && fps > 0.0) {
             return Err(CaptureError::InvalidTrajectory {
                 reason: format!("frame rate {fps} must be finite and > 0"),
@@ -58,9 +93,12 @@ impl Trajectory {
         check_distance(distance)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7472_616a);
         let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let half = (hi - lo) / 2.0;
         Ok(Trajectory {
             fps,
             distance,
+            theta_mid: (lo + hi) / 2.0,
+            theta_amp: THETA_AMP.map(|a| a * half / DEFAULT_HALF_BAND),
             theta_freq: [rng.random_range(0.02..0.05), rng.random_range(0.08..0.15)],
             theta_phase: [rng.random_range(0.0..TAU), rng.random_range(0.0..TAU)],
             phi0: rng.random_range(0.0..360.0),
@@ -77,9 +115,9 @@ impl Trajectory {
 
     /// The camera view at time `t` seconds.
     pub fn view_at(&self, t: f64) -> ViewPose {
-        let theta = THETA_MID
-            + THETA_AMP[0] * (TAU * self.theta_freq[0] * t + self.theta_phase[0]).sin()
-            + THETA_AMP[1] * (TAU * self.theta_freq[1] * t + self.theta_phase[1]).sin();
+        let theta = self.theta_mid
+            + self.theta_amp[0] * (TAU * self.theta_freq[0] * t + self.theta_phase[0]).sin()
+            + self.theta_amp[1] * (TAU * self.theta_freq[1] * t + self.theta_phase[1]).sin();
         let phi = self.phi0
             + self.phi_rate * t
             + PHI_SWAY * (TAU * self.sway_freq * t + self.sway_phase).sin();
@@ -138,5 +176,37 @@ impl<'a> IntoIterator for &'a Trajectory {
     type IntoIter = Frames<'a>;
     fn into_iter(self) -> Frames<'a> {
         self.frames()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_band_is_swept_and_the_default_band_is_new() {
+        let (lo, hi) = Trajectory::DEFAULT_THETA_BAND;
+        assert_eq!(
+            Trajectory::new(5, 5.0, 5.0).unwrap(),
+            Trajectory::with_elevation(5, 5.0, 5.0, lo, hi).unwrap()
+        );
+        // Over many paths, a [20, 90] band goes well below the database's
+        // 45° and never leaves the band.
+        let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+        for seed in 0..20 {
+            let t = Trajectory::with_elevation(seed, 5.0, 5.0, 20.0, 90.0).unwrap();
+            for f in t.frames().take(200) {
+                min = min.min(f.view.theta_deg);
+                max = max.max(f.view.theta_deg);
+            }
+        }
+        assert!(
+            (20.0..30.0).contains(&min) && max <= 90.0 && max > 80.0,
+            "{min} {max}"
+        );
+        for (a, b) in [(50.0, 40.0), (-1.0, 10.0), (10.0, 91.0), (f64::NAN, 10.0)] {
+            let e = Trajectory::with_elevation(0, 5.0, 5.0, a, b).unwrap_err();
+            assert!(e.to_string().contains("elevation band"), "{e}");
+        }
     }
 }

@@ -43,6 +43,23 @@ impl ColourSpace {
         }
     }
 
+    /// Farthest any colour of a lookup-table cell lies from the cell's
+    /// centre, in this space. The table decides a whole cell by its centre,
+    /// so a rejection distance below this would reject the exact centre
+    /// colours of a flat-coloured object (whose k-means spread is 0).
+    /// RGB: half the diagonal of a 4x4x4 block (1 % over); Lab: the largest such
+    /// distance over the gamut (checked by a test).
+    pub fn lut_radius(self) -> f32 {
+        match self {
+            ColourSpace::Rgb => {
+                let half_step = (256 / LUT_SIDE) as f32 / 2.0;
+                // 1 % over: the exact bound must survive f32 rounding.
+                1.01 * 3f32.sqrt() * half_step * 100.0 / 255.0
+            }
+            ColourSpace::Lab => 2.96,
+        }
+    }
+
     /// Converts an sRGB pixel into this space.
     pub fn convert(self, rgb: [u8; 3]) -> [f32; 3] {
         match self {
@@ -177,7 +194,8 @@ impl Palette {
 
     fn build_lut(&mut self) {
         let step = 256 / LUT_SIDE;
-        let reject2 = self.reject_distance * self.reject_distance;
+        let reject = self.reject_distance.max(self.space.lut_radius());
+        let reject2 = reject * reject;
         for r in 0..LUT_SIDE {
             for g in 0..LUT_SIDE {
                 for b in 0..LUT_SIDE {
@@ -451,6 +469,65 @@ fn lab_to_srgb(lab: [f32; 3]) -> [u8; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Largest distance, in `space`, from a lookup cell's centre colour to
+    /// any of its corner colours, over every cell.
+    fn widest_cell(space: ColourSpace) -> f32 {
+        let step = 256 / LUT_SIDE;
+        let mut widest = 0f32;
+        for r in 0..LUT_SIDE {
+            for g in 0..LUT_SIDE {
+                for b in 0..LUT_SIDE {
+                    let cell = [r, g, b];
+                    let centre = space.convert(cell.map(|c| (c * step + step / 2) as u8));
+                    for corner in 0..8 {
+                        let rgb: [u8; 3] = std::array::from_fn(|k| {
+                            (cell[k] * step + if corner >> k & 1 == 1 { step - 1 } else { 0 }) as u8
+                        });
+                        let p = space.convert(rgb);
+                        let d2: f32 = (0..3).map(|k| (p[k] - centre[k]).powi(2)).sum();
+                        widest = widest.max(d2.sqrt());
+                    }
+                }
+            }
+        }
+        widest
+    }
+
+    #[test]
+    fn lut_radius_covers_every_cell_and_is_tight() {
+        for space in [ColourSpace::Rgb, ColourSpace::Lab] {
+            let widest = widest_cell(space);
+            let radius = space.lut_radius();
+            assert!(
+                widest <= radius,
+                "{space:?}: cell radius {widest} > {radius}"
+            );
+            assert!(
+                widest > 0.85 * radius,
+                "{space:?}: {radius} is loose for {widest}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_flat_coloured_object_keeps_its_colours_with_zero_spread() {
+        // Three exact colours, as a flat-shaded object gives: k-means finds
+        // them with zero spread, so the learned rejection distance is 0.
+        let colours = [[200u8, 30, 30], [30, 30, 200], [240, 240, 240]];
+        for space in [ColourSpace::Rgb, ColourSpace::Lab] {
+            let centres = colours.iter().map(|&c| space.convert(c)).collect();
+            let p = Palette::from_centres(space, centres, 0.0).expect("palette");
+            for (i, &c) in colours.iter().enumerate() {
+                assert_eq!(p.index(c), i as u8, "{space:?}: colour {c:?}");
+            }
+            assert_eq!(
+                p.index([20, 160, 20]),
+                NOT_OBJECT,
+                "{space:?}: green is not the object's"
+            );
+        }
+    }
 
     #[test]
     fn lab_round_trip_is_close() {

@@ -340,8 +340,73 @@ impl Detector {
                 counts[not] = ((pw * ph) as u32 - owned) as u16;
             }
         }
-        // Integral over the cell grid: I(x, y) = sum of cells left of x and
-        // above y.
+        self.build_integral(self.nf);
+        self.prepared = true;
+    }
+
+    /// Features per cell that segmentation reads: the C colours and "not
+    /// object" (the pairs only matter to the window scan).
+    fn colour_features(&self) -> usize {
+        self.model.colours() + 1
+    }
+
+    /// Bytes of the colour counts [`Detector::write_colour_counts`] writes.
+    pub fn colour_counts_bytes(&self) -> usize {
+        self.gx * self.gy * self.colour_features() * 2
+    }
+
+    /// Writes every cell's colour counts of the last prepared frame (cells
+    /// row-major, C + 1 native-endian `u16`s each) into `out`, which must be
+    /// [`Detector::colour_counts_bytes`] long: what another process needs
+    /// to [`Detector::prepare_colours_from`] the same frame.
+    pub fn write_colour_counts(&self, out: &mut [u8]) {
+        let (nf, k) = (self.nf, self.colour_features());
+        for (cell, dst) in self
+            .cell_counts
+            .chunks_exact(nf)
+            .zip(out.chunks_exact_mut(k * 2))
+        {
+            for (d, c) in dst.chunks_exact_mut(2).zip(&cell[..k]) {
+                d.copy_from_slice(&c.to_ne_bytes());
+            }
+        }
+    }
+
+    /// Prepares the colour features of a frame (per-cell counts and their
+    /// integral: what segmentation reads) from the colour counts another
+    /// detector with the same model wrote, skipping the pass over the
+    /// pixels. Pair features stay zero and [`Detector::scan`] stays
+    /// unavailable until the next [`Detector::prepare`]. `image` is the
+    /// same frame (for its size). Returns false, leaving nothing prepared,
+    /// when the sizes do not match.
+    pub fn prepare_colours_from(&mut self, image: &IndexImage, counts: &[u8]) -> bool {
+        self.prepared = false;
+        if image.width != self.width
+            || image.height != self.height
+            || counts.len() != self.colour_counts_bytes()
+        {
+            return false;
+        }
+        let (nf, k) = (self.nf, self.colour_features());
+        for (cell, src) in self
+            .cell_counts
+            .chunks_exact_mut(nf)
+            .zip(counts.chunks_exact(k * 2))
+        {
+            for (c, b) in cell[..k].iter_mut().zip(src.chunks_exact(2)) {
+                *c = u16::from_ne_bytes([b[0], b[1]]);
+            }
+            cell[k..].fill(0);
+        }
+        self.build_integral(k);
+        true
+    }
+
+    /// Integral over the cell grid: I(x, y) = sum of cells left of x and
+    /// above y.
+    /// Over the first `features` features only (the rest stay zero).
+    fn build_integral(&mut self, features: usize) {
+        let (gx, gy, nf) = (self.gx, self.gy, self.nf);
         let row = gx + 1;
         self.integral[..row * nf].fill(0.0);
         let mut run = std::mem::take(&mut self.run);
@@ -350,20 +415,20 @@ impl Detector {
             let base = (cy + 1) * row * nf;
             self.integral[base..base + nf].fill(0.0);
             for cx in 0..gx {
-                let counts = &self.cell_counts[(cy * gx + cx) * nf..(cy * gx + cx + 1) * nf];
+                let at = (cy * gx + cx) * nf;
+                let counts = &self.cell_counts[at..at + features];
                 for (r, &c) in run.iter_mut().zip(counts) {
                     *r += c as f32;
                 }
                 let (above, here) = self.integral.split_at_mut(base);
-                let up = &above[(cy * row + cx + 1) * nf..(cy * row + cx + 2) * nf];
-                let out = &mut here[(cx + 1) * nf..(cx + 2) * nf];
+                let up = &above[(cy * row + cx + 1) * nf..][..features];
+                let out = &mut here[(cx + 1) * nf..][..features];
                 for ((o, &u), &r) in out.iter_mut().zip(up).zip(run.iter()) {
                     *o = u + r;
                 }
             }
         }
         self.run = run;
-        self.prepared = true;
     }
 
     /// Scans the prepared frame with windows sized for `scale` (apparent

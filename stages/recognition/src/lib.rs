@@ -156,6 +156,44 @@ mod tests {
     }
 
     #[test]
+    fn colour_counts_from_another_process_prepare_what_segmentation_reads() {
+        let (rgb, _) = frame(Some((60, 40)), noisy);
+        let image = quantised(&rgb);
+        let mut first = Detector::new(model(), W, H).unwrap();
+        let found = first.detect(&image, Some(1.0)).expect("found");
+        let mut bytes = vec![0u8; first.colour_counts_bytes()];
+        first.write_colour_counts(&mut bytes);
+        let mut second = Detector::new(model(), W, H).unwrap();
+        assert!(second.prepare_colours_from(&image, &bytes));
+        let (c, _, nf) = first.layout();
+        let (gx, gy) = first.grid();
+        for (cx, cy) in [(0, 0), (gx / 2, gy / 2), (gx - 1, gy - 1)] {
+            assert_eq!(
+                first.cell_counts(cx, cy)[..=c],
+                second.cell_counts(cx, cy)[..=c]
+            );
+        }
+        let (mut a, mut b) = (vec![0.0; nf], vec![0.0; nf]);
+        for r in [
+            found.cells,
+            CellRect {
+                x0: 0,
+                y0: 0,
+                x1: gx as u32,
+                y1: gy as u32,
+            },
+        ] {
+            first.sum_cells(r, &mut a);
+            second.sum_cells(r, &mut b);
+            assert_eq!(a[..=c], b[..=c]);
+        }
+        // Only colours were prepared: no window scan on them.
+        assert_eq!(second.scan(1.0), None);
+        // Counts of another size prepare nothing.
+        assert!(!second.prepare_colours_from(&image, &bytes[2..]));
+    }
+
+    #[test]
     fn an_empty_frame_is_not_found() {
         let mut det = Detector::new(model(), W, H).unwrap();
         let (rgb, _) = frame(None, noisy);

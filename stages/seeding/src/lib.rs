@@ -29,6 +29,13 @@
 //!
 //! This crate is pure: no I/O, no IPC.
 
+pub mod fusion;
+
+pub use fusion::{
+    FilterConfig, FusedView, FusionError, Measurement, Outcome, UNKNOWN_THETA_SIGMA_DEG,
+    ViewFilter, theta_censored,
+};
+
 use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 

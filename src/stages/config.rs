@@ -1,0 +1,421 @@
+//! The pipeline configuration every process reads.
+
+use super::sized_intrinsics;
+use acch_capture::DEFAULT_DISTANCE;
+use acch_core::ViewDatabase;
+use acch_ipc::{Ipc, Names, Observer, Qos, ZenohConfig};
+use anyhow::{Context, Result, anyhow, bail};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The pipeline's configuration (`pipeline.toml`); every process reads the
+/// same file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PipelineConfig {
+    /// Keeps the shared-memory services of concurrent runs apart (the
+    /// launcher sets its pid).
+    pub instance: String,
+    /// Built-in object name.
+    pub object: String,
+    /// View database; the launcher fills in the cached default.
+    pub db: Option<PathBuf>,
+    /// Where default databases are cached.
+    pub cache_dir: Option<PathBuf>,
+    /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv) or
+    /// `mcap:FILE` (replays a recording of `acch run --record`).
+    pub source: String,
+    /// Background of the simulated scene.
+    pub background: String,
+    /// Frames to capture (0 = until stopped).
+    pub frames: u64,
+    /// Frame rate; 0 = free-running.
+    pub fps: f64,
+    /// Pace of an `mcap:` replay: `recorded` (the recording's own frame
+    /// times) or `free` (as fast as the pipeline takes them); `fps` does
+    /// not apply to replays.
+    pub replay: String,
+    /// Seed of the trajectory and the scene.
+    pub seed: u64,
+    /// Known camera distance to the object centre (object bounding radii);
+    /// unset = from the ROI's scale against training.
+    pub distance: Option<f64>,
+    /// Frames each pixel-reading stage keeps to look frame N up.
+    pub frame_history: usize,
+    /// Width of the synthetic camera's frames, pixels.
+    pub width: u32,
+    /// Height of the synthetic camera's frames, pixels.
+    pub height: u32,
+    /// How frames reach the stages: `shm` (zero copy, the pipeline) or
+    /// `copy` (the benchmark's baseline: capture writes every frame into a
+    /// Unix socket per pixel-reading stage, which reads it into its own
+    /// buffer).
+    pub transport: String,
+    /// zenoh endpoints.
+    pub zenoh: ZenohConfig,
+    /// Where the `viz` process logs to rerun: `save:FILE.rrd`, `spawn` or
+    /// `connect:URL`; unset = no viewer process.
+    pub rerun: Option<String>,
+    /// MCAP file the `record` process writes every frame and result to;
+    /// unset = no recorder process.
+    pub record: Option<PathBuf>,
+    /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
+    /// the normal scheduler. Needs CAP_SYS_NICE (or an rtprio limit).
+    pub realtime_priority: u8,
+    /// Sequence number of the first frame capture sends: 0, or where a
+    /// capture restarted by the launcher continues the run.
+    pub first_frame: u64,
+}
+
+/// A configuration value out of range; names the key and the value.
+#[derive(Debug)]
+pub struct ConfigError {
+    /// The key (`fps`, `zenoh.listen`, ...).
+    pub key: &'static str,
+    /// The offending value as written.
+    pub value: String,
+    /// What is allowed.
+    pub why: &'static str,
+}
+
+impl std::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} = {}: {}", self.key, self.value, self.why)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        PipelineConfig {
+            instance: std::process::id().to_string(),
+            object: "fruitbox".into(),
+            db: None,
+            cache_dir: None,
+            source: "synthetic".into(),
+            background: "A".into(),
+            frames: 300,
+            fps: 30.0,
+            replay: "recorded".into(),
+            seed: 0,
+            distance: Some(DEFAULT_DISTANCE),
+            frame_history: 4,
+            width: 640,
+            height: 480,
+            transport: "shm".into(),
+            zenoh: ZenohConfig::default(),
+            rerun: None,
+            record: None,
+            realtime_priority: 0,
+            first_frame: 0,
+        }
+    }
+}
+
+impl PipelineConfig {
+    /// Reads a TOML file and checks its values ([`Self::validate`]).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        Self::parse(&text).with_context(|| format!("in {}", path.display()))
+    }
+
+    /// Parses TOML text and checks its values.
+    pub fn parse(text: &str) -> Result<Self> {
+        let cfg: Self = toml::from_str(text).context("not a valid pipeline configuration")?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Checks every value a process would otherwise trip over later: NaN or
+    /// negative rates and distances, frame sizes, unknown names.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |key, value: &dyn std::fmt::Display, why| ConfigError {
+            key,
+            value: value.to_string(),
+            why,
+        };
+        if !(self.fps.is_finite() && (0.0..=10_000.0).contains(&self.fps)) {
+            return Err(bad(
+                "fps",
+                &self.fps,
+                "must be a number in 0..=10000 (0 = free-running)",
+            ));
+        }
+        if let Some(d) = self.distance
+            && !(d.is_finite() && d > 0.0 && d <= 1e6)
+        {
+            return Err(bad(
+                "distance",
+                &d,
+                "must be a positive number of object radii",
+            ));
+        }
+        for (key, v) in [("width", self.width), ("height", self.height)] {
+            if !(16..=8192).contains(&v) {
+                return Err(bad(key, &v, "must be 16..=8192 pixels"));
+            }
+        }
+        if !(1..=64).contains(&self.frame_history) {
+            return Err(bad(
+                "frame_history",
+                &self.frame_history,
+                "must be 1..=64 frames",
+            ));
+        }
+        if self.realtime_priority > crate::realtime::MAX_PRIORITY {
+            return Err(bad(
+                "realtime_priority",
+                &self.realtime_priority,
+                "must be 0 (off) or 1..=90",
+            ));
+        }
+        if !matches!(self.transport.as_str(), "shm" | "copy") {
+            return Err(bad("transport", &self.transport, "must be shm or copy"));
+        }
+        let s = self.source.as_str();
+        if !(s == "synthetic" || s.starts_with("folder:") || s.starts_with("mcap:")) {
+            return Err(bad(
+                "source",
+                &s,
+                "must be synthetic, folder:DIR or mcap:FILE",
+            ));
+        }
+        if s.strip_prefix("folder:").or(s.strip_prefix("mcap:")) == Some("") {
+            return Err(bad("source", &s, "names no directory or file"));
+        }
+        if self.source == "synthetic"
+            && self.background.parse::<acch_capture::Background>().is_err()
+        {
+            return Err(bad(
+                "background",
+                &self.background,
+                "must be plain, A, B, C, clutter or clutter-similar",
+            ));
+        }
+        if self.instance.is_empty()
+            || !self
+                .instance
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return Err(bad(
+                "instance",
+                &self.instance,
+                "must be letters, digits, - or _",
+            ));
+        }
+        if self.zenoh.prefix.is_empty() || self.zenoh.prefix.contains(['*', '$', '?', '#']) {
+            return Err(bad(
+                "zenoh.prefix",
+                &self.zenoh.prefix,
+                "must be a non-empty key without wildcards",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Where stage process `pid` of this run writes its counters when it
+    /// stops (the launcher reads and removes it).
+    pub fn counters_path(&self, stage: &str, pid: u32) -> PathBuf {
+        std::env::temp_dir().join(format!("acch-run-{}-{stage}-{pid}.json", self.instance))
+    }
+
+    /// Writes it as TOML.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        std::fs::write(path, toml::to_string(self)?)
+            .with_context(|| format!("writing {}", path.display()))
+    }
+
+    /// The run's service names.
+    pub fn names(&self) -> Names {
+        Names::new(&self.instance)
+    }
+
+    /// Opens this process's iceoryx2 node.
+    pub fn ipc(&self, node: &str) -> Result<Ipc> {
+        let qos = Qos {
+            frame_history: self.frame_history.max(1),
+            max_frame_bytes: self.max_frame_bytes(),
+        };
+        Ok(Ipc::new(self.names(), node, qos)?)
+    }
+
+    /// Largest frame, bytes (the frame service's shared memory is sized
+    /// for it).
+    pub fn max_frame_bytes(&self) -> usize {
+        // A folder or a recording sets its own size (its first frame);
+        // frames of another size are skipped by capture.
+        let (w, h) = if self.source == "synthetic" {
+            (self.width, self.height)
+        } else {
+            super::frame_size(self).unwrap_or((self.width, self.height))
+        };
+        w.max(1) as usize * h.max(1) as usize * 3
+    }
+
+    /// Whether frames are copied through Unix sockets (`transport = "copy"`).
+    pub fn copies_frames(&self) -> Result<bool> {
+        match self.transport.as_str() {
+            "shm" => Ok(false),
+            "copy" => Ok(true),
+            other => bail!("unknown transport '{other}': use shm or copy"),
+        }
+    }
+
+    /// The synthetic camera: the default focal length (so the object has
+    /// its trained size in pixels at any resolution), principal point at
+    /// the centre of a `width` x `height` image.
+    pub fn intrinsics(&self) -> acch_capture::Intrinsics {
+        sized_intrinsics(self.width, self.height)
+    }
+
+    /// The observer processes this run starts (viewer, recorder).
+    pub fn observers(&self) -> Vec<Observer> {
+        let mut v = Vec::new();
+        if self.rerun.is_some() {
+            v.push(Observer::Viz);
+        }
+        if self.record.is_some() {
+            v.push(Observer::Record);
+        }
+        v
+    }
+
+    pub(super) fn database(&self) -> Result<ViewDatabase> {
+        let path = self
+            .db
+            .as_ref()
+            .ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
+        Ok(ViewDatabase::load(path)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
+
+    fn config(cases: u32) -> Config {
+        Config {
+            cases,
+            failure_persistence: None,
+            rng_algorithm: RngAlgorithm::ChaCha,
+            rng_seed: RngSeed::Fixed(0xACC4_0009),
+            ..Config::default()
+        }
+    }
+
+    #[test]
+    fn the_default_round_trips_and_is_valid() {
+        let d = PipelineConfig::default();
+        let back = PipelineConfig::parse(&toml::to_string(&d).unwrap()).unwrap();
+        assert_eq!(
+            toml::to_string(&back).unwrap(),
+            toml::to_string(&d).unwrap()
+        );
+    }
+
+    #[test]
+    fn bad_values_name_the_key() {
+        for (text, key) in [
+            ("fps = nan", "fps"),
+            ("fps = -1.0", "fps"),
+            ("fps = inf", "fps"),
+            ("distance = -2.0", "distance"),
+            ("distance = nan", "distance"),
+            ("width = 0", "width"),
+            ("height = 100000", "height"),
+            ("frame_history = 0", "frame_history"),
+            ("transport = \"udp\"", "transport"),
+            ("source = \"camera\"", "source"),
+            ("source = \"folder:\"", "source"),
+            ("background = \"Z\"", "background"),
+            ("frames = -5", "frames"),
+            ("fps = \"fast\"", "fps"),
+            ("colour = 1", "colour"),
+            ("[zenoh]\nprefix = \"a/*\"", "zenoh.prefix"),
+        ] {
+            let e = PipelineConfig::parse(text).expect_err(text);
+            let msg = format!("{e:#}");
+            assert!(msg.contains(key), "{text}: {msg}");
+        }
+    }
+
+    /// A value of any TOML type, including the awkward floats.
+    fn value() -> impl Strategy<Value = String> {
+        prop_oneof![
+            any::<i64>().prop_map(|v| v.to_string()),
+            any::<f64>().prop_map(|v| format!("{v:?}")),
+            Just("nan".to_string()),
+            Just("-inf".to_string()),
+            Just("-0.0".to_string()),
+            any::<bool>().prop_map(|v| v.to_string()),
+            "[a-zA-Z0-9:/._ *-]{0,12}".prop_map(|v| format!("{v:?}")),
+            Just("[]".to_string()),
+            Just("[\"tcp/127.0.0.1:0\"]".to_string()),
+        ]
+    }
+
+    const KEYS: [&str; 16] = [
+        "object",
+        "db",
+        "source",
+        "background",
+        "frames",
+        "fps",
+        "replay",
+        "seed",
+        "distance",
+        "frame_history",
+        "width",
+        "height",
+        "transport",
+        "instance",
+        "first_frame",
+        "rerun",
+    ];
+
+    proptest! {
+        #![proptest_config(config(20000))]
+
+        #[test]
+        fn arbitrary_text_never_panics(text in "\\PC{0,120}") {
+            let _ = PipelineConfig::parse(&text);
+        }
+
+        #[test]
+        fn arbitrary_values_are_valid_or_refused(
+            entries in proptest::collection::vec((0..KEYS.len(), value()), 0..6),
+            zenoh in proptest::option::of((value(), value(), value())),
+        ) {
+            let mut text = String::new();
+            for (k, v) in &entries {
+                text.push_str(&format!("{} = {v}\n", KEYS[*k]));
+            }
+            if let Some((l, c, p)) = zenoh {
+                text.push_str(&format!("[zenoh]\nlisten = {l}\nconnect = {c}\nprefix = {p}\n"));
+            }
+            match PipelineConfig::parse(&text) {
+                Ok(c) => {
+                    prop_assert!(c.fps.is_finite() && c.fps >= 0.0);
+                    prop_assert!(c.distance.is_none_or(|d| d.is_finite() && d > 0.0));
+                    prop_assert!((16..=8192).contains(&c.width) && (16..=8192).contains(&c.height));
+                    prop_assert!(c.frame_history >= 1);
+                    prop_assert!(c.copies_frames().is_ok());
+                    // What was accepted is written back and read the same.
+                    let again = PipelineConfig::parse(&toml::to_string(&c).unwrap());
+                    prop_assert!(again.is_ok(), "{:?}", again.err());
+                }
+                Err(e) => {
+                    // Either TOML's own message (with line and key) or ours
+                    // (key = value: why).
+                    let m = format!("{e:#}");
+                    prop_assert!(m.contains("TOML") || m.contains(" = "), "{}", m);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,518 @@
+//! The five processing stages as pure functions over a result message.
+
+use super::{PipelineConfig, ResultJson, Stage};
+use acch_confidence::Model as ConfidenceModel;
+use acch_core::{IndexImage, Palette, Rect, ViewDatabase};
+use acch_ipc::{Fused, ResultMsg, SeedPublisher, StageId};
+use acch_pose::{PoseEstimator, Refinement, Slice};
+use acch_recognition::{CellRect, Detection, Detector, RecognitionModel};
+use acch_seeding::{FilterConfig, FusionError, Measurement, Outcome, ViewFilter, theta_censored};
+use acch_segmentation::Segmenter;
+use anyhow::{Context, Result, anyhow};
+use glam::{DAffine3, DVec2};
+
+fn scale_of(cfg: &PipelineConfig, db: &ViewDatabase) -> Option<f32> {
+    cfg.distance.map(|d| db.train_distance / d as f32)
+}
+
+/// Checks that a frame or payload has the size the stage was built for;
+/// a frame of another size mid-stream is skipped (and counted), never
+/// processed into a wrong result.
+struct SizeGuard {
+    stage: &'static str,
+    width: u32,
+    height: u32,
+    skipped: u64,
+}
+
+impl SizeGuard {
+    fn new(stage: &'static str, width: u32, height: u32) -> Self {
+        SizeGuard {
+            stage,
+            width,
+            height,
+            skipped: 0,
+        }
+    }
+
+    fn pixels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Whether frame `msg` is `width` x `height` and `len` is
+    /// `bytes_per_pixel` bytes per pixel of it.
+    fn fits(&mut self, msg: &ResultMsg, len: usize, bytes_per_pixel: usize) -> bool {
+        let ok = (msg.width, msg.height) == (self.width as u64, self.height as u64)
+            && len == self.pixels() * bytes_per_pixel;
+        if !ok {
+            self.skipped += 1;
+            // The first of a run is worth a line; the count goes in the
+            // stage's exit summary.
+            if self.skipped == 1 || self.skipped.is_power_of_two() {
+                tracing::warn!(
+                    "{}: frame {} is {}x{} ({len} bytes) but the pipeline runs at {}x{}: skipped ({} so far)",
+                    self.stage,
+                    msg.sequence,
+                    msg.width,
+                    msg.height,
+                    self.width,
+                    self.height,
+                    self.skipped
+                );
+            }
+        }
+        ok
+    }
+}
+
+/// Quantisation + window scan; publishes the frame's palette indices (one
+/// byte per pixel) and the detector's per-cell counts, so later stages
+/// neither touch the pixels nor count them again.
+pub struct Recognition {
+    palette: Palette,
+    detector: Detector,
+    index: IndexImage,
+    scale: Option<f32>,
+    size: SizeGuard,
+}
+
+impl Recognition {
+    /// The stage for `cfg`, on `width` x `height` frames.
+    pub fn new(cfg: &PipelineConfig, width: u32, height: u32) -> Result<Self> {
+        let db = cfg.database()?;
+        let model = RecognitionModel::from_database(&db)?
+            .ok_or_else(|| anyhow!("the database has no recognition model"))?;
+        Ok(Recognition {
+            palette: db.palette.clone(),
+            detector: Detector::new(model, width, height)?,
+            index: IndexImage::new(width, height, vec![0; width as usize * height as usize]),
+            scale: scale_of(cfg, &db),
+            size: SizeGuard::new("recognition", width, height),
+        })
+    }
+}
+
+impl Stage for Recognition {
+    const ID: StageId = StageId::Recognition;
+    const NEEDS_FRAME: bool = true;
+    fn payload_len(&self) -> usize {
+        self.size.pixels() + self.detector.colour_counts_bytes()
+    }
+    fn process(&mut self, msg: &mut ResultMsg, _: &[u8], frame: Option<&[u8]>, out: &mut [u8]) {
+        let Some(rgb) = frame else { return };
+        if !self.size.fits(msg, rgb.len(), 3) {
+            return;
+        }
+        let (w, h) = (self.size.width, self.size.height);
+        self.palette.quantise_into(rgb, w, h, &mut self.index);
+        if let Some(d) = self.detector.detect(&self.index, self.scale) {
+            msg.found = 1;
+            msg.window = [d.window.x, d.window.y, d.window.width, d.window.height].map(u64::from);
+            msg.cells = [d.cells.x0, d.cells.y0, d.cells.x1, d.cells.y1].map(u64::from);
+            msg.detection = [
+                d.score as f64,
+                d.threshold as f64,
+                d.scale as f64,
+                d.truncated as u64 as f64,
+            ];
+            // Nobody reads the indices of a frame without the object.
+            let (index_out, counts_out) = out.split_at_mut(self.index.data.len());
+            index_out.copy_from_slice(&self.index.data);
+            self.detector.write_colour_counts(counts_out);
+        }
+    }
+    fn skipped(&self) -> u64 {
+        self.size.skipped
+    }
+}
+
+/// Region growing from the detection over recognition's palette indices
+/// and cell counts; publishes the mask followed by the indices (pose's
+/// whole input).
+pub struct Segmentation {
+    detector: Detector,
+    segmenter: Segmenter,
+    index: IndexImage,
+    size: SizeGuard,
+}
+
+impl Segmentation {
+    /// The stage for `cfg`, on `width` x `height` frames.
+    pub fn new(cfg: &PipelineConfig, width: u32, height: u32) -> Result<Self> {
+        let db = cfg.database()?;
+        let model = RecognitionModel::from_database(&db)?
+            .ok_or_else(|| anyhow!("the database has no recognition model"))?;
+        Ok(Segmentation {
+            detector: Detector::new(model, width, height)?,
+            segmenter: Segmenter::new(width, height)?,
+            index: IndexImage::new(width, height, vec![0; width as usize * height as usize]),
+            size: SizeGuard::new("segmentation", width, height),
+        })
+    }
+}
+
+fn rect(v: [u64; 4]) -> Rect {
+    Rect {
+        x: v[0] as u32,
+        y: v[1] as u32,
+        width: v[2] as u32,
+        height: v[3] as u32,
+    }
+}
+
+impl Stage for Segmentation {
+    const ID: StageId = StageId::Segmentation;
+    const NEEDS_FRAME: bool = false;
+    fn payload_len(&self) -> usize {
+        2 * self.size.pixels()
+    }
+    fn process(&mut self, msg: &mut ResultMsg, input: &[u8], _: Option<&[u8]>, out: &mut [u8]) {
+        let n = self.size.pixels();
+        let counts = self.detector.colour_counts_bytes();
+        if msg.found != 1 || !self.size.fits(msg, input.len().saturating_sub(counts), 1) {
+            return;
+        }
+        let (index, counts) = input.split_at(n);
+        self.index.data.copy_from_slice(index);
+        if !self.detector.prepare_colours_from(&self.index, counts) {
+            return;
+        }
+        let det = Detection {
+            window: rect(msg.window),
+            cells: CellRect {
+                x0: msg.cells[0] as u32,
+                y0: msg.cells[1] as u32,
+                x1: msg.cells[2] as u32,
+                y1: msg.cells[3] as u32,
+            },
+            score: msg.detection[0] as f32,
+            threshold: msg.detection[1] as f32,
+            scale: msg.detection[2] as f32,
+            truncated: msg.detection[3] != 0.0,
+        };
+        let (mask_out, index_out) = out.split_at_mut(index.len());
+        if let Some(seg) = self.segmenter.segment(&self.index, &self.detector, &det)
+            && seg.mask.len() == mask_out.len()
+        {
+            mask_out.copy_from_slice(seg.mask);
+            index_out.copy_from_slice(index);
+            msg.segmented = 1;
+            msg.roi = [seg.roi.x, seg.roi.y, seg.roi.width, seg.roi.height].map(u64::from);
+        }
+    }
+    fn skipped(&self) -> u64 {
+        self.size.skipped
+    }
+}
+
+/// ACCH of the segmented ROI and the match-value response (published as
+/// the payload, f32 native-endian).
+pub struct Pose {
+    estimator: PoseEstimator,
+    index: IndexImage,
+    scale: Option<f32>,
+    views: usize,
+    size: SizeGuard,
+}
+
+impl Pose {
+    /// The stage for `cfg`, on `width` x `height` frames.
+    pub fn new(cfg: &PipelineConfig, width: u32, height: u32) -> Result<Self> {
+        let db = cfg.database()?;
+        Ok(Pose {
+            scale: scale_of(cfg, &db),
+            views: db.views().len(),
+            estimator: PoseEstimator::new(db)?,
+            index: IndexImage::new(width, height, vec![0; width as usize * height as usize]),
+            size: SizeGuard::new("pose", width, height),
+        })
+    }
+}
+
+impl Stage for Pose {
+    const ID: StageId = StageId::Pose;
+    const NEEDS_FRAME: bool = false;
+    fn payload_len(&self) -> usize {
+        self.views * 4
+    }
+    fn process(&mut self, msg: &mut ResultMsg, input: &[u8], _: Option<&[u8]>, out: &mut [u8]) {
+        if msg.segmented != 1 || !self.size.fits(msg, input.len(), 2) {
+            return;
+        }
+        let (mask, index) = input.split_at(input.len() / 2);
+        self.index.data.copy_from_slice(index);
+        let Some(e) = self.estimator.estimate(
+            &self.index,
+            Some(mask),
+            rect(msg.roi),
+            self.scale,
+            Refinement::Parabolic,
+        ) else {
+            return;
+        };
+        msg.estimated = 1;
+        msg.estimate = [
+            e.theta_deg as f64,
+            e.phi_deg as f64,
+            e.best_value as f64,
+            e.scale as f64,
+        ];
+        msg.best_view = e.best_view as u64;
+        msg.accepted = 1;
+        msg.confidence = 1.0;
+        for (dst, v) in out.chunks_exact_mut(4).zip(self.estimator.response()) {
+            dst.copy_from_slice(&v.to_ne_bytes());
+        }
+    }
+    fn skipped(&self) -> u64 {
+        self.size.skipped
+    }
+}
+
+/// The confidence network over the response.
+pub struct Confidence {
+    model: Option<ConfidenceModel>,
+    slices: Vec<Slice>,
+    views: Vec<acch_core::View>,
+    response: Vec<f32>,
+}
+
+impl Confidence {
+    /// The stage for `cfg`.
+    pub fn new(cfg: &PipelineConfig) -> Result<Self> {
+        let db = cfg.database()?;
+        let model = match ConfidenceModel::load(&db) {
+            Ok(m) => Some(m),
+            Err(acch_confidence::ConfidenceError::MissingSection) => None,
+            Err(e) => return Err(e).context("reading the confidence network"),
+        };
+        Ok(Confidence {
+            model,
+            slices: acch_pose::slices(&db),
+            response: Vec::with_capacity(db.views().len()),
+            views: db.views().to_vec(),
+        })
+    }
+}
+
+impl Stage for Confidence {
+    const ID: StageId = StageId::Confidence;
+    const NEEDS_FRAME: bool = false;
+    fn payload_len(&self) -> usize {
+        0
+    }
+    fn process(&mut self, msg: &mut ResultMsg, response: &[u8], _: Option<&[u8]>, _: &mut [u8]) {
+        if msg.estimated == 0 {
+            return;
+        }
+        let Some(model) = &self.model else { return };
+        self.response.clear();
+        self.response.extend(
+            response
+                .chunks_exact(4)
+                .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])),
+        );
+        if self.response.len() != self.views.len() {
+            return;
+        }
+        let r = model.rating(&self.response, &self.slices, &self.views);
+        msg.rated = 1;
+        msg.confidence = r.confidence as f64;
+        msg.accepted = r.accepted as u64;
+    }
+}
+
+/// SE(3) seeds; publishes seed and result on zenoh.
+pub struct Seeding {
+    object: String,
+    grid: acch_seeding::GridSpacing,
+    train_distance: f64,
+    distance: Option<f64>,
+    zenoh: SeedPublisher,
+    covariance: acch_seeding::CovarianceModel,
+    filter: ViewFilter,
+    /// The database's lowest θ slice: an estimate there may stand for any
+    /// view below it, so it fuses φ only.
+    lowest_theta_deg: f64,
+    /// The arm's camera pose at the last frame, to predict by the motion
+    /// since (absolute poses, so frames dropped upstream cost nothing).
+    last_arm: Option<DAffine3>,
+}
+
+impl Seeding {
+    /// The stage for `cfg` (opens the zenoh session).
+    pub fn new(cfg: &PipelineConfig) -> Result<Self> {
+        let db = cfg.database()?;
+        let grid = acch_seeding::grid_spacing(
+            db.views()
+                .iter()
+                .map(|v| (v.theta_deg as f64, v.phi_deg as f64)),
+        );
+        Ok(Seeding {
+            object: db.object.clone(),
+            grid,
+            train_distance: db.train_distance as f64,
+            distance: cfg.distance,
+            zenoh: SeedPublisher::new(&cfg.zenoh, &cfg.object)?,
+            covariance: Default::default(),
+            filter: ViewFilter::new(FilterConfig::default())?,
+            lowest_theta_deg: db
+                .views()
+                .iter()
+                .map(|v| v.theta_deg as f64)
+                .fold(f64::INFINITY, f64::min),
+            last_arm: None,
+        })
+    }
+}
+
+impl Stage for Seeding {
+    const ID: StageId = StageId::Seeding;
+    const NEEDS_FRAME: bool = false;
+    fn payload_len(&self) -> usize {
+        0
+    }
+    fn process(&mut self, msg: &mut ResultMsg, _: &[u8], _: Option<&[u8]>, _: &mut [u8]) {
+        self.predict(msg);
+        let outcome = self.seed(msg);
+        self.publish_fused(msg, outcome);
+    }
+    fn sink(&mut self, msg: &ResultMsg) -> Result<()> {
+        let r = ResultJson::of(&self.object, msg);
+        if let Some(seed) = &r.seed {
+            self.zenoh.put_seed(serde_json::to_vec(seed)?)?;
+        }
+        self.zenoh.put_result(serde_json::to_vec(&r)?)?;
+        Ok(())
+    }
+}
+
+impl Seeding {
+    /// Carries the fused pose through the arm's motion since the last
+    /// frame; without the arm's pose the motion is unknown and the fused
+    /// pose is dropped.
+    fn predict(&mut self, msg: &ResultMsg) {
+        if msg.arm.valid != 1 {
+            self.filter.reset();
+            self.last_arm = None;
+            return;
+        }
+        let arm = DAffine3::from_cols_array(&msg.arm.world_from_camera);
+        if let Some(last) = self.last_arm
+            && let Err(e) = self.filter.predict(&(last.inverse() * arm))
+        {
+            tracing::warn!("frame {}: {e}: fused pose dropped", msg.sequence);
+            self.filter.reset();
+        }
+        self.last_arm = Some(arm);
+    }
+
+    /// Seeds an accepted estimate and fuses it; returns what the filter did
+    /// with it (0 when there was nothing to fuse, as in [`acch_ipc::Fused`]).
+    fn seed(&mut self, msg: &mut ResultMsg) -> u64 {
+        if msg.estimated == 0 || msg.accepted == 0 {
+            msg.accepted = 0;
+            return 0;
+        }
+        let roi = msg.roi;
+        let input = acch_seeding::SeedInput {
+            theta_deg: msg.estimate[0].clamp(0.0, 90.0),
+            phi_deg: msg.estimate[1],
+            roi_centre_px: DVec2::new(
+                roi[0] as f64 + (roi[2] as f64 - 1.0) / 2.0,
+                roi[1] as f64 + (roi[3] as f64 - 1.0) / 2.0,
+            ),
+            intrinsics: acch_seeding::Pinhole {
+                fx: msg.intrinsics[0],
+                fy: msg.intrinsics[1],
+                cx: msg.intrinsics[2],
+                cy: msg.intrinsics[3],
+            },
+            distance: match self.distance {
+                Some(d) => acch_seeding::Distance::Known {
+                    value: d,
+                    sigma: 0.02 * d,
+                },
+                None => acch_seeding::Distance::FromScale {
+                    train_distance: self.train_distance,
+                    scale: msg.estimate[3].max(1e-3),
+                    relative_sigma: 0.1,
+                },
+            },
+            confidence: msg.confidence.clamp(0.0, 1.0),
+            grid: self.grid,
+        };
+        match acch_seeding::seed(&input, &self.covariance) {
+            Ok(s) => {
+                msg.seeded = 1;
+                msg.seed_translation = s.translation().to_array();
+                msg.seed_rotation_xyzw = s.rotation().to_array();
+                msg.seed_covariance = s.covariance;
+            }
+            Err(e) => {
+                tracing::warn!("frame {}: no seed: {e}", msg.sequence);
+                msg.accepted = 0;
+                return 0;
+            }
+        }
+        if self.last_arm.is_none() {
+            return 0;
+        }
+        let censored = theta_censored(input.theta_deg, self.lowest_theta_deg);
+        let fused = Measurement::from_estimate(&input, &self.covariance)
+            .map(|m| if censored { m.without_theta(&input) } else { m })
+            .map_err(|e| FusionError::InvalidMeasurement(e.to_string()))
+            .and_then(|m| self.filter.update(&m));
+        match fused {
+            Ok(Outcome::Initialised) => 1,
+            Ok(Outcome::Fused { .. }) => 2,
+            Ok(Outcome::Gated { .. }) => 3,
+            Ok(Outcome::Reinitialised { .. }) => 4,
+            Err(e) => {
+                tracing::warn!("frame {}: not fused: {e}", msg.sequence);
+                0
+            }
+        }
+    }
+
+    fn publish_fused(&self, msg: &mut ResultMsg, outcome: u64) {
+        msg.fused = match self.filter.state() {
+            Some(f) => Fused {
+                valid: 1,
+                outcome,
+                view_deg: [f.theta_deg, f.phi_deg],
+                view_covariance_deg2: [
+                    f.view_covariance_deg2[0][0],
+                    f.view_covariance_deg2[0][1],
+                    f.view_covariance_deg2[1][0],
+                    f.view_covariance_deg2[1][1],
+                ],
+                camera_from_object: f.camera_from_object,
+                rotation_covariance: std::array::from_fn(|i| f.rotation_covariance[i / 3][i % 3]),
+                fused: f.fused as u64,
+                since_update: f.since_update as u64,
+            },
+            None => Fused::default(),
+        };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{FRAME_READERS, Stage};
+    use super::*;
+
+    #[test]
+    fn frame_readers_are_the_stages_that_need_frames() {
+        let needs = [
+            (StageId::Recognition, Recognition::NEEDS_FRAME),
+            (StageId::Segmentation, Segmentation::NEEDS_FRAME),
+            (StageId::Pose, Pose::NEEDS_FRAME),
+            (StageId::Confidence, Confidence::NEEDS_FRAME),
+            (StageId::Seeding, Seeding::NEEDS_FRAME),
+        ];
+        for (id, needs_frame) in needs {
+            assert_eq!(FRAME_READERS.contains(&id), needs_frame, "{id:?}");
+        }
+    }
+}

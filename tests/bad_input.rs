@@ -1,0 +1,396 @@
+//! Bad input to `acch run` gives a clear error naming the input, and never
+//! a panic: missing, corrupt and truncated images in a folder source,
+//! corrupt, truncated and wrong-version databases, malformed TOML, NaN or
+//! negative parameters. Frames of another size mid-stream are skipped and
+//! the run goes on.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Runs `acch ARGS` with a loopback zenoh port and a time limit.
+fn acch(dir: &Path, args: &[&str]) -> Output {
+    let cfg = dir.join("zenoh.toml");
+    if !cfg.exists() {
+        std::fs::write(
+            &cfg,
+            format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port()),
+        )
+        .unwrap();
+    }
+    let child = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    // A watchdog: a hang is a failure too.
+    let (tx, rx) = std::sync::mpsc::channel::<()>();
+    std::thread::spawn(move || {
+        if rx.recv_timeout(Duration::from_secs(240)).is_err() {
+            // SAFETY: kill(2) on our own child.
+            unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        }
+    });
+    let out = child.wait_with_output().unwrap();
+    let _ = tx.send(());
+    out
+}
+
+/// The run failed cleanly: not a panic (exit 101, "panicked"), and stderr
+/// names `what`.
+fn fails_naming(out: &Output, what: &str) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    eprintln!("{err}");
+    assert!(!out.status.success(), "accepted bad input ({what})");
+    assert_ne!(out.status.code(), Some(101), "panicked on {what}: {err}");
+    assert!(
+        out.status.code().is_some(),
+        "killed by a signal on {what}: {err}"
+    );
+    assert!(!err.contains("panicked"), "a panic on {what}: {err}");
+    assert!(err.contains(what), "the error does not name {what}: {err}");
+    err
+}
+
+/// A bad frame either stops the run with an error naming it or is skipped
+/// with a warning naming it; never a panic.
+fn names_cleanly(out: &Output, what: &str) {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    eprintln!("{err}");
+    assert_ne!(out.status.code(), Some(101), "panicked on {what}: {err}");
+    assert!(
+        out.status.code().is_some(),
+        "killed by a signal on {what}: {err}"
+    );
+    assert!(!err.contains("panicked"), "a panic on {what}: {err}");
+    assert!(err.contains(what), "{what} is not named: {err}");
+}
+
+fn run_with_config(text: &str) -> Output {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pipeline.toml");
+    std::fs::write(&path, text).unwrap();
+    acch(dir.path(), &["run", "--config", path.to_str().unwrap()])
+}
+
+#[test]
+fn malformed_toml_names_the_file_and_line() {
+    let out = run_with_config("frames = 30\nfps = [1, \n");
+    let err = fails_naming(&out, "pipeline.toml");
+    assert!(err.contains("line 2"), "{err}");
+}
+
+#[test]
+fn nan_negative_and_out_of_range_parameters_name_the_key() {
+    for (text, key) in [
+        ("fps = nan", "fps = NaN"),
+        ("fps = -30.0", "fps = -30"),
+        ("distance = -5.0", "distance = -5"),
+        ("distance = nan", "distance = NaN"),
+        ("frames = -1", "frames"),
+        ("width = 0", "width = 0"),
+        ("height = 99999", "height = 99999"),
+        ("frame_history = 0", "frame_history = 0"),
+        ("transport = \"carrier-pigeon\"", "carrier-pigeon"),
+        ("source = \"webcam\"", "webcam"),
+        ("background = \"mars\"", "mars"),
+        ("[zenoh]\nlisten = \"tcp/127.0.0.1:7447\"", "listen"),
+    ] {
+        let out = run_with_config(text);
+        fails_naming(&out, key);
+    }
+}
+
+#[test]
+fn nan_and_negative_command_line_values_name_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, what) in [
+        (&["run", "--fps", "NaN"][..], "fps = NaN"),
+        (&["run", "--fps=-2"][..], "fps = -2"),
+        (&["run", "--frames=-3"][..], "--frames"),
+        (&["run", "--resolution", "0x480"][..], "0x480"),
+        (
+            &["run", "--stall-timeout", "nan", "--frames", "1"][..],
+            "stall-timeout",
+        ),
+    ] {
+        let out = acch(dir.path(), args);
+        fails_naming(&out, what);
+    }
+}
+
+/// A valid database: the cached default (trained on first use).
+fn valid_database() -> &'static PathBuf {
+    static DB: OnceLock<PathBuf> = OnceLock::new();
+    DB.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg = dir.path().join("p.toml");
+        std::fs::write(
+            &cfg,
+            format!(
+                "frames = 3\nfps = 0.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+                free_port()
+            ),
+        )
+        .unwrap();
+        let json = dir.path().join("run.json");
+        let out = acch(
+            dir.path(),
+            &[
+                "run",
+                "--config",
+                cfg.to_str().unwrap(),
+                "--json",
+                json.to_str().unwrap(),
+            ],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let home = std::env::var_os("XDG_CACHE_HOME")
+            .map(|d| PathBuf::from(d).join("acch"))
+            .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
+            .unwrap();
+        let mut dbs: Vec<PathBuf> = std::fs::read_dir(&home)
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| {
+                p.file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .starts_with("fruitbox-")
+                    && p.extension().is_some_and(|x| x == "acchdb")
+            })
+            .collect();
+        dbs.sort_by_key(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
+        dbs.pop().expect("no cached fruitbox database")
+    })
+}
+
+#[test]
+fn missing_corrupt_truncated_and_wrong_version_databases_name_the_file() {
+    let good = std::fs::read(valid_database()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "garbage.acchdb",
+            b"definitely not a database".to_vec(),
+            "not an acch view database",
+        ),
+        (
+            "truncated.acchdb",
+            good[..good.len() / 2].to_vec(),
+            "truncated",
+        ),
+        ("empty.acchdb", Vec::new(), "not an acch view database"),
+    ];
+    let mut flipped = good.clone();
+    let mid = flipped.len() / 2;
+    flipped[mid] ^= 0x5a;
+    cases.push(("flipped.acchdb", flipped, "checksum"));
+    let mut version = good.clone();
+    version[8..12].copy_from_slice(&99u32.to_le_bytes());
+    cases.push(("version99.acchdb", version, "version 99"));
+    for (name, bytes, why) in &cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let out = acch(
+            dir.path(),
+            &["run", "--frames", "3", "--db", path.to_str().unwrap()],
+        );
+        let err = fails_naming(&out, name);
+        assert!(
+            err.to_lowercase().contains(why),
+            "{name}: expected '{why}': {err}"
+        );
+    }
+    let out = acch(
+        dir.path(),
+        &[
+            "run",
+            "--frames",
+            "3",
+            "--db",
+            dir.path().join("absent.acchdb").to_str().unwrap(),
+        ],
+    );
+    fails_naming(&out, "absent.acchdb");
+}
+
+/// Renders `views` of the fruitbox at `w` x `h` into `out` (PNG +
+/// labels.csv).
+fn render(out: &Path, views: &str, w: u32, h: u32) {
+    let o = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args([
+            "render",
+            "--object",
+            "fruitbox",
+            "--background",
+            "A",
+            "--views",
+            views,
+        ])
+        .args([
+            "--width",
+            &w.to_string(),
+            "--height",
+            &h.to_string(),
+            "--out",
+        ])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+fn folder_run(dir: &Path, folder: &Path, frames: u32) -> Output {
+    let json = dir.join("run.json");
+    let cfg = dir.join("p.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "source = \"folder:{}\"\nframes = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            folder.display(),
+            free_port()
+        ),
+    )
+    .unwrap();
+    acch(
+        dir,
+        &[
+            "run",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    )
+}
+
+#[test]
+fn missing_corrupt_and_truncated_images_name_the_file() {
+    valid_database();
+    let dir = tempfile::tempdir().unwrap();
+    let imgs = dir.path().join("imgs");
+    render(&imgs, "grid:60,80:90", 320, 240);
+    let labels = std::fs::read_to_string(imgs.join("labels.csv")).unwrap();
+    let mut lines: Vec<&str> = labels.lines().collect();
+    let files: Vec<String> = lines[1..]
+        .iter()
+        .map(|l| l.split(',').next().unwrap().to_string())
+        .collect();
+    assert!(files.len() >= 4, "{labels}");
+
+    // Missing: labels.csv lists a file that is not there.
+    let missing = lines[2].replacen(&files[1], "gone.png", 1);
+    lines[2] = &missing;
+    std::fs::write(imgs.join("labels.csv"), lines.join("\n") + "\n").unwrap();
+    names_cleanly(&folder_run(dir.path(), &imgs, 4), "gone.png");
+    std::fs::write(imgs.join("labels.csv"), &labels).unwrap();
+
+    // Corrupt: not a PNG at all.
+    let victim = imgs.join(&files[2]);
+    let good = std::fs::read(&victim).unwrap();
+    std::fs::write(&victim, b"this is not an image").unwrap();
+    names_cleanly(&folder_run(dir.path(), &imgs, 4), &files[2]);
+
+    // Truncated: the first half of a PNG.
+    std::fs::write(&victim, &good[..good.len() / 2]).unwrap();
+    names_cleanly(&folder_run(dir.path(), &imgs, 4), &files[2]);
+
+    // A labels.csv with a bad number names the file and the line.
+    std::fs::write(&victim, &good).unwrap();
+    let mut bad: Vec<String> = labels.lines().map(str::to_owned).collect();
+    let mut f: Vec<&str> = bad[2].split(',').collect();
+    f[1] = "forty-five";
+    bad[2] = f.join(",");
+    std::fs::write(imgs.join("labels.csv"), bad.join("\n") + "\n").unwrap();
+    // file:line, the column and the value.
+    let err = fails_naming(&folder_run(dir.path(), &imgs, 4), "labels.csv:3");
+    assert!(err.contains("forty-five"), "{err}");
+}
+
+#[test]
+fn frames_of_another_size_mid_stream_are_skipped_and_the_rest_estimated() {
+    valid_database();
+    let dir = tempfile::tempdir().unwrap();
+    let (big, small, mixed) = (
+        dir.path().join("big"),
+        dir.path().join("small"),
+        dir.path().join("mixed"),
+    );
+    render(&big, "grid:60,80:60", 640, 480);
+    render(&small, "grid:70:120", 320, 240);
+    std::fs::create_dir(&mixed).unwrap();
+    // Interleave: every third frame has the other size.
+    let read = |d: &Path| -> (String, Vec<String>) {
+        let t = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+        let mut l = t.lines().map(str::to_owned);
+        (l.next().unwrap(), l.collect())
+    };
+    let (header, big_rows) = read(&big);
+    let (_, small_rows) = read(&small);
+    let mut rows = Vec::new();
+    let (mut b, mut s) = (big_rows.iter(), small_rows.iter());
+    let mut k = 0;
+    loop {
+        let (src, row) = if k % 3 == 2 {
+            match s.next() {
+                Some(r) => (&small, r),
+                None => break,
+            }
+        } else {
+            match b.next() {
+                Some(r) => (&big, r),
+                None => break,
+            }
+        };
+        let file = row.split(',').next().unwrap();
+        let name = format!("{k:03}.png");
+        std::fs::copy(src.join(file), mixed.join(&name)).unwrap();
+        rows.push(row.replacen(file, &name, 1));
+        k += 1;
+    }
+    std::fs::write(
+        mixed.join("labels.csv"),
+        format!("{header}\n{}\n", rows.join("\n")),
+    )
+    .unwrap();
+    let n = rows.len() as u64;
+    let odd = rows.len() / 3;
+    let out = folder_run(dir.path(), &mixed, n as u32);
+    let err = String::from_utf8_lossy(&out.stderr);
+    eprintln!("{err}");
+    assert!(
+        out.status.success(),
+        "a run with frames of another size failed: {err}"
+    );
+    assert!(!err.contains("panicked"));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("run.json")).unwrap())
+            .unwrap();
+    eprintln!(
+        "results {} of {n}, accepted {}, wrong {}",
+        s["results"], s["accepted"], s["accepted_wrong"]
+    );
+    assert!(
+        err.contains("002.png"),
+        "the skipped frame is not named: {err}"
+    );
+    assert!(s["results"].as_u64().unwrap() >= n - odd as u64, "{s}");
+    assert_eq!(s["accepted_wrong"], 0, "{s}");
+}
