@@ -325,15 +325,6 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             Source::Folder { pixels, .. } => pixels,
             Source::Mcap { current, .. } => current.as_ref().map_or(&[], |f| f.pixels()),
         };
-        if pixels.len() > cfg.max_frame_bytes() {
-            bail!(
-                "frame {i} is {}x{}: larger than {}x{} (set width and height)",
-                header.width,
-                header.height,
-                cfg.width,
-                cfg.height
-            );
-        }
         header.stride = header.width * 3;
         // The frame exists now (a camera's exposure time stamp); rendering or
         // decoding it is the capture stage's processing time.

@@ -246,12 +246,9 @@ impl PipelineConfig {
     /// for it).
     pub fn max_frame_bytes(&self) -> usize {
         // A folder or a recording sets its own size (its first frame);
-        // frames of another size are skipped by capture.
-        let (w, h) = if self.source == "synthetic" {
-            (self.width, self.height)
-        } else {
-            super::frame_size(self).unwrap_or((self.width, self.height))
-        };
+        // frames of another size are skipped by capture. An unreadable
+        // source fails later, naming itself, where capture opens it.
+        let (w, h) = super::frame_size(self).unwrap_or((self.width, self.height));
         w.max(1) as usize * h.max(1) as usize * 3
     }
 
