@@ -4,7 +4,6 @@ mod cmd;
 mod model;
 mod pipeline;
 mod plot;
-mod realtime;
 mod stages;
 
 use clap::{Parser, Subcommand};

@@ -102,6 +102,23 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
         "{summary}"
     );
     assert!(summary["end_to_end"]["p99_ms"].as_f64().unwrap() > 0.0);
+    // stage_cpus = "auto": on two or more CPUs the five stages and
+    // capture's publishing thread share the last one, read back from
+    // /proc/PID/status of every process.
+    let placement = &summary["placement"];
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if cpus >= 2 {
+        let stages = placement["stages"].as_array().expect("placed");
+        assert_eq!(stages.len(), 1, "{placement}");
+        let cpu = stages[0].to_string();
+        let procs = summary["processes"].as_array().unwrap();
+        assert_eq!(procs.len(), 6, "{summary}");
+        for p in procs {
+            assert_eq!(p["cpus"].as_str(), Some(cpu.as_str()), "{p}");
+        }
+    } else {
+        assert!(placement.is_null(), "{placement}");
+    }
 
     let report = lines.next().expect("subscriber report").unwrap();
     let r: serde_json::Value = serde_json::from_str(&report).unwrap();

@@ -9,6 +9,7 @@
 
 pub mod channel;
 pub mod msg;
+pub mod sched;
 pub mod shm;
 pub mod zenoh_io;
 

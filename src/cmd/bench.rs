@@ -50,6 +50,15 @@ pub struct BenchArgs {
     /// `shm-rt`, `acch run --rt-priority`); needs CAP_SYS_NICE.
     #[arg(long, value_name = "PRIORITY")]
     rt_priority: Option<u8>,
+    /// CPUs of the processing stages in every mode (`acch run
+    /// --stage-cpus`): auto, none or a list like 1.
+    #[arg(long, value_name = "CPUS", default_value = "auto")]
+    stage_cpus: String,
+    /// Runs of every mode per configuration, modes interleaved (shm,
+    /// in-process, copy, shm-rt, shm, ...); percentiles pool the frames of
+    /// all runs, so a slow spell of the machine weighs on every mode alike.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
+    repeat: u32,
 }
 
 /// Percentiles in milliseconds of nanosecond samples.
@@ -86,6 +95,36 @@ struct RunResult {
     process: Vec<(String, Vec<u64>)>,
 }
 
+impl RunResult {
+    /// The runs of one mode as one: samples pooled, the summary of the
+    /// first run with the lowest throughput of any; `e2e_p50_ms_per_run`
+    /// keeps each run's median to show the spread.
+    fn pooled(mut runs: Vec<RunResult>) -> RunResult {
+        let per_run: Vec<f64> = runs.iter().map(|r| q_ms(&r.e2e, 0.5)).collect();
+        let slowest = runs
+            .iter()
+            .filter_map(|r| r.summary["fps_achieved"].as_f64())
+            .fold(f64::INFINITY, f64::min);
+        let mut all = runs.remove(0);
+        for r in runs {
+            all.e2e.extend(r.e2e);
+            for (into, from) in [(&mut all.hops, r.hops), (&mut all.process, r.process)] {
+                for (name, xs) in from {
+                    match into.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, v)) => v.extend(xs),
+                        None => into.push((name, xs)),
+                    }
+                }
+            }
+        }
+        if slowest.is_finite() {
+            all.summary["fps_achieved"] = json!(slowest);
+        }
+        all.summary["e2e_p50_ms_per_run"] = json!(per_run);
+        all
+    }
+}
+
 fn series(v: &Value) -> Vec<(String, Vec<u64>)> {
     v.as_array()
         .map(|a| {
@@ -115,6 +154,7 @@ fn run_once(
         .args(["--fps", &fps.to_string()])
         .args(["--resolution", &format!("{w}x{h}")])
         .args(["--seed", &args.seed.to_string()])
+        .args(["--stage-cpus", &args.stage_cpus])
         .arg("--samples")
         .arg("--json")
         .arg(&out);
@@ -206,6 +246,8 @@ fn figures(r: &RunResult, frames: u64) -> Value {
         "results": results,
         "dropped": frames.saturating_sub(results),
         "processes": s["processes"],
+        "placement": s.get("placement"),
+        "e2e_p50_ms_per_run": s.get("e2e_p50_ms_per_run"),
         "frame_reads": s.get("frame_reads"),
         "frame_reads_in_place": s.get("frame_reads_in_place"),
     })
@@ -257,6 +299,9 @@ fn machine() -> Machine {
 
 /// Runs `acch bench`.
 pub fn run(args: BenchArgs) -> Result<()> {
+    if let Err(e) = args.stage_cpus.parse::<acch_ipc::sched::StageCpus>() {
+        bail!("--stage-cpus {}: {e}", args.stage_cpus);
+    }
     if args.fps.iter().any(|f| !(f.is_finite() && *f >= 0.0)) {
         bail!("--fps: every rate must be a number >= 0");
     }
@@ -271,11 +316,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
             } else {
                 &["shm", "in-process", "copy"]
             };
-            let runs = modes
-                .iter()
-                .map(|m| run_once(&args, m, res, fps, &tmp))
-                .collect::<Result<Vec<_>>>()?;
-            let f: Vec<Value> = runs.iter().map(|r| figures(r, args.frames)).collect();
+            let mut by_mode: Vec<Vec<RunResult>> = modes.iter().map(|_| Vec::new()).collect();
+            for _ in 0..args.repeat {
+                for (m, runs) in modes.iter().zip(&mut by_mode) {
+                    runs.push(run_once(&args, m, res, fps, &tmp)?);
+                }
+            }
+            let runs: Vec<RunResult> = by_mode.into_iter().map(RunResult::pooled).collect();
+            let frames = args.frames * u64::from(args.repeat);
+            let f: Vec<Value> = runs.iter().map(|r| figures(r, frames)).collect();
             let (shm, inproc, copy) = (&f[0], &f[1], &f[2]);
             let rt = f.get(3);
             let ratio = |a: &Value, b: &Value, k: &str| {
@@ -288,6 +337,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 "resolution": format!("{}x{}", res.0, res.1),
                 "fps": fps,
                 "frames": args.frames,
+                "repeat": args.repeat,
                 "e2e_p50_ms": shm["e2e_p50_ms"],
                 "e2e_p90_ms": shm["e2e_p90_ms"],
                 "e2e_p99_ms": shm["e2e_p99_ms"],

@@ -193,6 +193,8 @@ struct Summary {
     /// What each stage process counted (written when it stopped; a killed
     /// process leaves none).
     stage_counters: Vec<serde_json::Value>,
+    /// Where the processes ran (`stage_cpus`); null when not placed.
+    placement: Option<acch_ipc::sched::Placement>,
     #[serde(skip_serializing_if = "Option::is_none")]
     samples: Option<Samples>,
 }
@@ -217,14 +219,20 @@ fn rss_kb(pid: u32) -> Option<u64> {
 }
 
 fn status_kb(pid: u32, key: &str) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status
-        .lines()
-        .find_map(|l| l.strip_prefix(key))?
+    status_field(pid, key)?
         .split_whitespace()
         .next()?
         .parse()
         .ok()
+}
+
+/// The value of line `key` of /proc/PID/status, trimmed.
+pub(super) fn status_field(pid: u32, key: &str) -> Option<String> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(key))
+        .map(|v| v.trim().to_owned())
 }
 
 /// Runs the multi-process pipeline.
@@ -257,6 +265,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     if let Some(p) = args.rt_priority {
         cfg.realtime_priority = p;
+    }
+    if let Some(c) = &args.stage_cpus {
+        cfg.stage_cpus.clone_from(c);
     }
     // A replay runs the whole recording unless told otherwise.
     if let Some(path) = cfg.source.strip_prefix("mcap:")
@@ -305,13 +316,19 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     if cfg.realtime_priority > 0 {
         // Set here, before any stage starts: every child inherits it.
-        crate::realtime::set_fifo(cfg.realtime_priority).with_context(|| {
+        acch_ipc::sched::set_fifo(cfg.realtime_priority).with_context(|| {
             format!(
                 "realtime_priority = {}: SCHED_FIFO needs CAP_SYS_NICE or an rtprio limit \
                  (ulimit -r); run without it",
                 cfg.realtime_priority
             )
         })?;
+    }
+    // Before any child starts: capture and the observers inherit the
+    // launcher's CPUs; the stages move themselves to theirs.
+    let placement = cfg.place_run()?;
+    if let Some(p) = &placement {
+        tracing::info!("stages on CPUs {:?}, the rest on {:?}", p.stages, p.others);
     }
     let config_path = std::env::temp_dir().join(format!("acch-run-{}.toml", cfg.instance));
     cfg.save(&config_path)?;
@@ -567,6 +584,7 @@ pub fn run(args: RunArgs) -> Result<()> {
                 cpu_s,
                 cpu_pct: 100.0 * cpu_s / elapsed.max(1e-9),
                 peak_rss_kb: peak_rss_kb(p.child.id()).unwrap_or(0),
+                cpus: status_field(p.child.id(), "Cpus_allowed_list:").unwrap_or_default(),
             }
         })
         .collect();
@@ -581,6 +599,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let mut summary = summarise(&cfg, &got, elapsed, stale_nodes_removed);
     summary.processes = processes;
+    summary.placement = placement;
     summary.pids = pids;
     summary.restarts = restarts;
     summary.stale_nodes_removed_during_run = stale_during_run;
@@ -779,6 +798,7 @@ fn summarise(
         height: cfg.height,
         dropped: cfg.frames.saturating_sub(got.len() as u64),
         processes: Vec::new(),
+        placement: None,
         accepted_wrong: wrong.len() as u64,
         accepted_wrong_sequences: wrong,
         pids: Vec::new(),

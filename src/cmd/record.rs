@@ -6,7 +6,7 @@
 //! gaps in sequence numbers are counted and reported.
 
 use crate::stages::{PipelineConfig, ResultJson};
-use acch_ipc::{Observer, StageId};
+use acch_ipc::{Observer, ResultMsg, StageId};
 use acch_record::{FrameInfo, FrameTruth, Recorder};
 use anyhow::{Context, Result, anyhow};
 use iceoryx2::prelude::EventId;
@@ -54,6 +54,8 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
     let responses = ipc.result_input(StageId::Pose)?;
     let results = ipc.result_input(StageId::Seeding)?;
     let recorded = ipc.control_notifier(acch_record::RECORDED_EVENT)?;
+    // The frame-sized mask of each result, rebuilt from its crop.
+    let mut mask = Vec::new();
     let mut rec = Recorder::create(&path, epoch_offset_ns())?;
     announce_ready(&ipc, Observer::Record)?;
     let mut s = RecordSummary {
@@ -96,15 +98,9 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
         while let Some(m) = masks.receive()? {
             let h = m.user_header();
             gaps[1].see(h.sequence);
-            if h.segmented == 1 {
+            if h.segmented == 1 && frame_mask(h, m.payload(), &mut mask) {
                 let (w, hh) = (h.width as u32, h.height as u32);
-                rec.mask(
-                    h.sequence,
-                    h.trail.captured_ns,
-                    w,
-                    hh,
-                    mask_of(m.payload(), w, hh),
-                )?;
+                rec.mask(h.sequence, h.trail.captured_ns, w, hh, &mask)?;
                 s.masks += 1;
             }
         }
@@ -161,10 +157,25 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
     Ok(())
 }
 
-/// The mask in segmentation's payload: its first `w * h` bytes (the
-/// colour indices for pose follow).
-pub(crate) fn mask_of(payload: &[u8], w: u32, h: u32) -> &[u8] {
-    &payload[..(w as usize * h as usize).min(payload.len())]
+/// The frame-sized mask of segmentation's result `h` into `out`: the
+/// payload starts with the mask cropped to `h.roi` (the colour indices for
+/// pose follow). False, leaving `out` empty, when the ROI does not fit the
+/// frame or the payload.
+pub(crate) fn frame_mask(h: &ResultMsg, payload: &[u8], out: &mut Vec<u8>) -> bool {
+    out.clear();
+    let (w, fh) = (h.width as usize, h.height as usize);
+    let [x, y, rw, rh] = h.roi.map(|v| v as usize);
+    if x + rw > w || y + rh > fh || rw * rh > payload.len() {
+        return false;
+    }
+    out.resize(w * fh, 0);
+    if rw > 0 {
+        for (row, src) in payload[..rw * rh].chunks_exact(rw).enumerate() {
+            let at = (y + row) * w + x;
+            out[at..at + rw].copy_from_slice(src);
+        }
+    }
+    true
 }
 
 /// The pose stage's response payload: native-endian f32s.
@@ -202,7 +213,7 @@ pub(crate) const OBSERVER_NICE: libc::c_int = 10;
 pub(crate) fn lower_priority(o: Observer) {
     // Under `realtime_priority` the launcher's SCHED_FIFO is inherited:
     // observers leave it, so they never preempt a stage.
-    if let Err(e) = crate::realtime::set_normal() {
+    if let Err(e) = acch_ipc::sched::set_normal() {
         tracing::warn!("{}: could not leave the real-time scheduler: {e}", o.name());
     }
     // SAFETY: setpriority(2) on this process, no pointers.

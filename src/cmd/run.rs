@@ -53,6 +53,13 @@ pub struct RunArgs {
     /// loaded machine. Needs CAP_SYS_NICE or an rtprio limit.
     #[arg(long, value_name = "PRIORITY")]
     pub(crate) rt_priority: Option<u8>,
+    /// CPUs of the five processing stages: auto (the last CPU; capture,
+    /// observers and launcher on the rest), none (the scheduler decides),
+    /// or a list like 1 or 2,3. One shared CPU makes each hop a local
+    /// context switch instead of a cross-CPU wake-up (default: auto, or
+    /// the configuration's).
+    #[arg(long, value_name = "CPUS")]
+    pub(crate) stage_cpus: Option<String>,
     /// Pace of an mcap: replay: recorded (the recording's frame times) or
     /// free (as fast as the pipeline takes frames).
     #[arg(long, value_name = "PACE")]
@@ -126,6 +133,8 @@ pub struct ProcessUsage {
     pub cpu_pct: f64,
     /// Peak resident set, kB (VmHWM / ru_maxrss).
     pub peak_rss_kb: u64,
+    /// The CPUs it was allowed on (`Cpus_allowed_list`, e.g. "1" or "0-1").
+    pub cpus: String,
 }
 
 /// Every frame's latencies, nanoseconds (with `--samples`).
@@ -242,6 +251,15 @@ fn run_in_process(args: RunArgs) -> Result<()> {
     if !(fps.is_finite() && fps >= 0.0) {
         bail!("--fps {} must be a number >= 0", fps);
     }
+    // On the stages' CPU, as in the multi-process run, so both compare alike.
+    let placement = crate::stages::PipelineConfig {
+        stage_cpus: args.stage_cpus.clone().unwrap_or_else(|| "auto".into()),
+        ..Default::default()
+    };
+    placement
+        .validate()
+        .context("invalid pipeline configuration")?;
+    placement.pin_stage()?;
     let object = args.object.load()?;
     let db = match &args.db {
         Some(path) => ViewDatabase::load(path)?,
@@ -348,6 +366,8 @@ fn run_in_process(args: RunArgs) -> Result<()> {
         cpu_s: cpu1 - cpu0,
         cpu_pct: 100.0 * (cpu1 - cpu0) / elapsed.max(1e-9),
         peak_rss_kb,
+        cpus: super::launch::status_field(std::process::id(), "Cpus_allowed_list:")
+            .unwrap_or_default(),
     }];
     let samples = args.samples.then(|| Samples {
         e2e_ns: times[5].clone(),

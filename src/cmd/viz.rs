@@ -5,7 +5,7 @@
 //! behind, iceoryx2 drops the oldest samples queued for it; the gaps are
 //! counted, logged to `viz/dropped` and reported at exit.
 
-use super::record::{Gaps, announce_ready, lower_priority, mask_of};
+use super::record::{Gaps, announce_ready, frame_mask, lower_priority};
 use crate::stages::PipelineConfig;
 use acch_core::ViewDatabase;
 use acch_ipc::{Observer, ResultMsg, StageId};
@@ -229,14 +229,15 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
         while let Some(m) = masks.receive()? {
             let h = m.user_header();
             gaps[1].see(h.sequence);
-            if h.segmented == 1 {
+            let mut mask = Vec::new();
+            if h.segmented == 1 && frame_mask(h, m.payload(), &mut mask) {
                 let (w, hh) = (h.width as u32, h.height as u32);
                 let item = Item::Mask {
                     sequence: h.sequence,
                     capture_ns: h.trail.captured_ns,
                     width: w,
                     height: hh,
-                    mask: mask_of(m.payload(), w, hh).to_vec(),
+                    mask,
                 };
                 s.masks += u64::from(send(item, &mut s.masks_queue_full));
             }

@@ -13,18 +13,17 @@ enum Source {
     Synthetic {
         renderer: Box<acch_capture::Renderer>,
         trajectory: Trajectory,
+        /// The first frame, the template of every render buffer.
         frame: Box<acch_capture::Rendered>,
         seed: u64,
     },
     Folder {
         files: Vec<(PathBuf, Option<acch_capture::labels::LabelRow>)>,
-        pixels: Vec<u8>,
     },
     /// A recording of `acch run --record`, replayed in order.
     Mcap {
         path: PathBuf,
         frames: Box<acch_record::ReplayReader>,
-        current: Option<acch_record::ReplayFrame>,
     },
 }
 
@@ -52,7 +51,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
     let ipc = cfg.ipc("capture")?;
     let output = ipc.frame_output()?;
     let start = ipc.control_listener("start")?;
-    let mut source = match cfg.source.as_str() {
+    let source = match cfg.source.as_str() {
         "synthetic" => {
             let object = acch_capture::Object::builtin(&cfg.object)?;
             let background: Background = cfg.background.parse()?;
@@ -97,10 +96,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             if files.is_empty() {
                 bail!("{} holds no images", dir.display());
             }
-            Source::Folder {
-                files,
-                pixels: Vec::new(),
-            }
+            Source::Folder { files }
         }
         s if s.starts_with("mcap:") => {
             let path = PathBuf::from(&s["mcap:".len()..]);
@@ -117,7 +113,6 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             Source::Mcap {
                 frames: Box::new(acch_record::ReplayReader::open(&path)?),
                 path,
-                current: None,
             }
         }
         other => bail!("unknown source '{other}': use synthetic, folder:DIR or mcap:FILE"),
@@ -145,6 +140,39 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
     };
     let mut logged = 0u64;
     let (want_w, want_h) = frame_size(cfg)?;
+    // The source (rendering, decoding, reading) runs ahead on a thread of
+    // its own, which keeps the launcher's CPUs, as a camera exposes and
+    // reads out a frame on its own; this thread only publishes, from the
+    // stages' CPU, so the wake-up of recognition is a local one.
+    let (frames_tx, frames_rx) = std::sync::mpsc::sync_channel::<Produced>(READ_AHEAD);
+    let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Box<acch_capture::Rendered>>();
+    let producer = {
+        let k = cfg.intrinsics();
+        let (first, frames, source_name) = (cfg.first_frame, cfg.frames, cfg.source.clone());
+        let realtime = cfg.realtime_priority > 0;
+        std::thread::Builder::new()
+            .name("capture-source".into())
+            .spawn(move || -> Result<()> {
+                if realtime {
+                    // Rendering is the camera's work, not the real-time path.
+                    acch_ipc::sched::set_normal().context("capture source: normal scheduling")?;
+                }
+                produce(
+                    source,
+                    SourceRun {
+                        first,
+                        frames,
+                        size: (want_w, want_h),
+                        intrinsics: [k.fx, k.fy, k.cx, k.cy],
+                        name: source_name,
+                    },
+                    &frames_tx,
+                    &recycle_rx,
+                )
+            })
+            .context("starting the capture source thread")?
+    };
+    cfg.pin_stage()?;
     announce_ready(&ipc, StageId::Capture)?;
     // Wait for the launcher: every subscriber is connected.
     let mut go = false;
@@ -154,7 +182,6 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             e => Err(anyhow!("waiting for start: {e:?}")),
         })?;
     }
-    let k = cfg.intrinsics();
     let mut locator = ShmLocator::new();
     // The copy baseline: connect to every pixel-reading stage's socket (they
     // are bound before the stages announce readiness).
@@ -168,14 +195,10 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
         None
     };
     let t0 = Instant::now();
-    // Frames sent (the sequence of synthetic and folder frames), source
-    // position, frames skipped for their size, results seen (free replay).
-    // A restarted capture continues where the run is (`first_frame`), so
-    // sequence numbers keep growing and the source keeps its place.
+    // Frames sent, results seen (free replay). A restarted capture
+    // continues where the run is (`first_frame`), so sequence numbers keep
+    // growing and the source keeps its place.
     let mut i = cfg.first_frame;
-    let mut index = cfg.first_frame;
-    let mut skipped = 0u64;
-    let mut skipped_in_a_row = 0u64;
     let mut finished = cfg.first_frame;
     let mut first_capture_ns = None;
     while ipc.keep_running() && (cfg.frames == 0 || i < cfg.frames) {
@@ -212,16 +235,136 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 }
             }
         }
+        // The source is done (or failed: its error is returned below).
+        let Ok(Produced {
+            mut header,
+            pixels,
+            taken_ns,
+        }) = frames_rx.recv()
+        else {
+            break;
+        };
+        if pace == Some(Pace::Recorded) {
+            // The recording's frame times, from the first frame's.
+            let first = *first_capture_ns.get_or_insert(header.capture_ns);
+            let due = t0 + Duration::from_nanos(header.capture_ns.saturating_sub(first));
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
+        // The frame exists now (a camera's exposure time stamp); capture's
+        // own span is the publishing (rendering or decoding it ran ahead,
+        // `taken_ns` long, and is not part of the frame's latency).
+        let captured = now_ns();
+        header.capture_ns = captured;
+        header.trail.captured_ns = captured;
+        header.trail.stages[0].received_ns = captured;
+        tracing::trace!("frame {}: source took {taken_ns} ns", header.sequence);
+        if let Some(tx) = &mut copies {
+            // Published = the copy starts; the header follows on iceoryx2
+            // with no pixels.
+            header.trail.stages[0].published_ns = now_ns();
+            tx.send(header.sequence, pixels.bytes())?;
+            output.send(&[], |h, _| *h = header)?;
+        } else {
+            output.send(pixels.bytes(), |h, addr| {
+                let loc = locator.locate(addr).unwrap_or_default();
+                (header.shm_file, header.shm_offset) = loc;
+                header.trail.stages[0].published_ns = now_ns();
+                *h = header;
+            })?;
+        }
+        if let Pixels::Rendered(frame) = pixels {
+            // Back to the source for the next frame (no allocation per frame).
+            let _ = recycle_tx.send(frame);
+        }
+        i += 1;
+    }
+    // Stops a source still rendering ahead, then reports how it ended.
+    drop(frames_rx);
+    let ended = producer
+        .join()
+        .map_err(|_| anyhow!("the capture source thread panicked"))?;
+    // A source that fails (an unreadable image, a corrupt recording) ends
+    // the stream; say why.
+    ended?;
+    tracing::info!("capture: {} frames sent", i - cfg.first_frame);
+    while ipc.keep_running() {
+        std::thread::sleep(WAIT);
+    }
+    Ok(())
+}
+
+/// Frames the source may have ready beyond the one being published.
+const READ_AHEAD: usize = 1;
+
+/// The pixels of a produced frame, wherever the source keeps them.
+enum Pixels {
+    /// A synthetic frame (its buffer returns to the renderer).
+    Rendered(Box<acch_capture::Rendered>),
+    /// A decoded image.
+    Owned(Vec<u8>),
+    /// A recorded frame.
+    Replay(acch_record::ReplayFrame),
+}
+
+impl Pixels {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            Pixels::Rendered(f) => f.image.as_raw(),
+            Pixels::Owned(p) => p,
+            Pixels::Replay(f) => f.pixels(),
+        }
+    }
+}
+
+/// A frame from the source, ready to publish.
+struct Produced {
+    /// Everything but the time stamps and the shared-memory location;
+    /// `capture_ns` holds a recording's own time stamp (its pace).
+    header: FrameHeader,
+    pixels: Pixels,
+    /// How long the source took to make it, nanoseconds.
+    taken_ns: u64,
+}
+
+/// What the source thread needs to know of the run.
+struct SourceRun {
+    first: u64,
+    frames: u64,
+    size: (u32, u32),
+    intrinsics: [f64; 4],
+    name: String,
+}
+
+/// The source thread: makes frames `run.first ..` of `run.size` in order
+/// and hands them over (blocking while [`READ_AHEAD`] wait); skips frames
+/// of another size. Returns when the run's frames are made, the source
+/// ends, or the publisher hangs up; an unreadable input is an error.
+fn produce(
+    mut source: Source,
+    run: SourceRun,
+    out: &std::sync::mpsc::SyncSender<Produced>,
+    recycle: &std::sync::mpsc::Receiver<Box<acch_capture::Rendered>>,
+) -> Result<()> {
+    let (want_w, want_h) = run.size;
+    // Frames made (the sequence of synthetic and folder frames), source
+    // position, frames skipped for their size.
+    let mut i = run.first;
+    let mut index = run.first;
+    let mut skipped = 0u64;
+    let mut skipped_in_a_row = 0u64;
+    while run.frames == 0 || i < run.frames {
         let started = now_ns();
         let mut header = FrameHeader {
             sequence: i,
             pixel_format: pixel_format::RGB8,
-            intrinsics: [k.fx, k.fy, k.cx, k.cy],
+            intrinsics: run.intrinsics,
             ..Default::default()
         };
         let position = index;
         index += 1;
-        match &mut source {
+        let pixels = match &mut source {
             Source::Synthetic {
                 renderer,
                 trajectory,
@@ -229,14 +372,15 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 seed,
             } => {
                 let view = trajectory.frame(i).view;
+                let mut buffer = recycle.try_recv().unwrap_or_else(|_| frame.clone());
                 renderer.render_into(
                     &view,
                     crate::cmd::common::frame_seed(*seed, i as usize),
-                    frame,
+                    &mut buffer,
                 );
-                let (w, h) = frame.image.dimensions();
+                let (w, h) = buffer.image.dimensions();
                 (header.width, header.height) = (w as u64, h as u64);
-                let t = &frame.truth;
+                let t = &buffer.truth;
                 header.truth = acch_ipc::Truth {
                     valid: 1,
                     theta_deg: t.theta_deg,
@@ -250,8 +394,9 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                     valid: 1,
                     world_from_camera: t.world_from_camera.to_cols_array(),
                 };
+                Pixels::Rendered(buffer)
             }
-            Source::Folder { files, pixels } => {
+            Source::Folder { files } => {
                 let (path, label) = &files[position as usize % files.len()];
                 let img = image::open(path)
                     .with_context(|| format!("reading {}", path.display()))?
@@ -267,13 +412,9 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                         camera_from_object: view.camera_from_world().to_cols_array(),
                     };
                 }
-                *pixels = img.into_raw();
+                Pixels::Owned(img.into_raw())
             }
-            Source::Mcap {
-                path,
-                frames,
-                current,
-            } => {
+            Source::Mcap { path, frames } => {
                 let Some(f) = frames.next().transpose()? else {
                     tracing::info!("capture: end of {}", path.display());
                     break;
@@ -281,6 +422,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                 let info = &f.info;
                 header.sequence = info.sequence;
                 header.intrinsics = info.intrinsics;
+                header.capture_ns = info.capture_ns;
                 (header.width, header.height) = (info.width as u64, info.height as u64);
                 if let Some(t) = &info.truth {
                     header.truth = acch_ipc::Truth {
@@ -291,17 +433,9 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
                         camera_from_object: t.camera_from_object,
                     };
                 }
-                if pace == Some(Pace::Recorded) {
-                    // The recording's frame times, from the first frame's.
-                    let first = *first_capture_ns.get_or_insert(info.capture_ns);
-                    let due = t0 + Duration::from_nanos(info.capture_ns.saturating_sub(first));
-                    if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                        std::thread::sleep(wait);
-                    }
-                }
-                *current = Some(f);
+                Pixels::Replay(f)
             }
-        }
+        };
         if (header.width, header.height) != (want_w as u64, want_h as u64) {
             // One odd frame must not stop a camera: skip it, say which.
             skipped += 1;
@@ -315,45 +449,24 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<()> {
             if let Source::Folder { files, .. } = &source
                 && skipped_in_a_row >= files.len() as u64
             {
-                bail!("no image in {} is {want_w}x{want_h}", cfg.source);
+                bail!("no image in {} is {want_w}x{want_h}", run.name);
             }
             continue;
         }
         skipped_in_a_row = 0;
-        let pixels: &[u8] = match &source {
-            Source::Synthetic { frame, .. } => frame.image.as_raw(),
-            Source::Folder { pixels, .. } => pixels,
-            Source::Mcap { current, .. } => current.as_ref().map_or(&[], |f| f.pixels()),
-        };
         header.stride = header.width * 3;
-        // The frame exists now (a camera's exposure time stamp); rendering or
-        // decoding it is the capture stage's processing time.
-        let captured = now_ns();
-        header.capture_ns = captured;
-        header.trail.captured_ns = captured;
-        header.trail.stages[0].received_ns = started;
-        if let Some(tx) = &mut copies {
-            // Published = the copy starts; the header follows on iceoryx2
-            // with no pixels.
-            header.trail.stages[0].published_ns = now_ns();
-            tx.send(header.sequence, pixels)?;
-            output.send(&[], |h, _| *h = header)?;
-        } else {
-            output.send(pixels, |h, addr| {
-                let loc = locator.locate(addr).unwrap_or_default();
-                (header.shm_file, header.shm_offset) = loc;
-                header.trail.stages[0].published_ns = now_ns();
-                *h = header;
-            })?;
+        let produced = Produced {
+            header,
+            pixels,
+            taken_ns: now_ns().saturating_sub(started),
+        };
+        if out.send(produced).is_err() {
+            break;
         }
         i += 1;
     }
     if skipped > 0 {
         tracing::warn!("capture: {skipped} frames skipped: not {want_w}x{want_h}");
-    }
-    tracing::info!("capture: {i} frames sent, {skipped} skipped for their size");
-    while ipc.keep_running() {
-        std::thread::sleep(WAIT);
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 use super::sized_intrinsics;
 use acch_capture::DEFAULT_DISTANCE;
 use acch_core::ViewDatabase;
+use acch_ipc::sched::{self, Placement, StageCpus};
 use acch_ipc::{Ipc, Names, Observer, Qos, ZenohConfig};
 use anyhow::{Context, Result, anyhow, bail};
 use serde::{Deserialize, Serialize};
@@ -62,6 +63,12 @@ pub struct PipelineConfig {
     /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
     /// the normal scheduler. Needs CAP_SYS_NICE (or an rtprio limit).
     pub realtime_priority: u8,
+    /// CPUs of the five processing stages: `auto` (the last CPU when there
+    /// are two or more; capture, the observers and the launcher keep the
+    /// others), `none` (the scheduler decides) or a list such as `1` or
+    /// `2,3`. Sharing one CPU turns every hop into a local context switch
+    /// (README, "Placement").
+    pub stage_cpus: String,
     /// Sequence number of the first frame capture sends: 0, or where a
     /// capture restarted by the launcher continues the run.
     pub first_frame: u64,
@@ -108,6 +115,7 @@ impl Default for PipelineConfig {
             rerun: None,
             record: None,
             realtime_priority: 0,
+            stage_cpus: "auto".into(),
             first_frame: 0,
         }
     }
@@ -164,11 +172,19 @@ impl PipelineConfig {
                 "must be 1..=64 frames",
             ));
         }
-        if self.realtime_priority > crate::realtime::MAX_PRIORITY {
+        if self.realtime_priority > acch_ipc::sched::MAX_PRIORITY {
             return Err(bad(
                 "realtime_priority",
                 &self.realtime_priority,
                 "must be 0 (off) or 1..=90",
+            ));
+        }
+        if let Err(why) = self.stage_cpus.parse::<StageCpus>() {
+            tracing::debug!("stage_cpus: {why}");
+            return Err(bad(
+                "stage_cpus",
+                &self.stage_cpus,
+                "must be auto, none or a comma-separated list of CPU numbers",
             ));
         }
         if !matches!(self.transport.as_str(), "shm" | "copy") {
@@ -252,6 +268,56 @@ impl PipelineConfig {
         w.max(1) as usize * h.max(1) as usize * 3
     }
 
+    /// The configured placement of the processing stages.
+    pub fn stage_cpus(&self) -> Result<StageCpus> {
+        self.stage_cpus
+            .parse()
+            .map_err(|e| anyhow!("stage_cpus = {}: {e}", self.stage_cpus))
+    }
+
+    /// The launcher's side of `stage_cpus`: resolves it against the CPUs
+    /// this process may use, moves this process (and so capture and the
+    /// observers it starts) to the other CPUs, and writes the resolved list
+    /// back for the stage processes, which start on those other CPUs.
+    pub fn place_run(&mut self) -> Result<Option<Placement>> {
+        let allowed = sched::allowed_cpus().context("reading this process's CPUs")?;
+        let placement = self
+            .stage_cpus()?
+            .resolve(&allowed)
+            .map_err(|e| anyhow!("stage_cpus = {}: {e}", self.stage_cpus))?;
+        match &placement {
+            Some(p) => {
+                if !p.others.is_empty() {
+                    sched::pin_to(&p.others)
+                        .with_context(|| format!("moving the launcher to CPUs {:?}", p.others))?;
+                }
+                self.stage_cpus = cpu_list(&p.stages);
+            }
+            None => self.stage_cpus = "none".into(),
+        }
+        Ok(placement)
+    }
+
+    /// Pins the calling thread (a stage process's, or the one-process
+    /// pipeline's) to the stages' CPUs; returns them, or `None` when the
+    /// stages are not placed.
+    pub fn pin_stage(&self) -> Result<Option<Vec<usize>>> {
+        let cpus = match self.stage_cpus()? {
+            StageCpus::Free => return Ok(None),
+            // Resolved by the launcher for every stage alike.
+            StageCpus::List(cpus) => cpus,
+            auto @ StageCpus::Auto => {
+                let allowed = sched::allowed_cpus().context("reading this process's CPUs")?;
+                match auto.resolve(&allowed).map_err(|e| anyhow!(e))? {
+                    Some(p) => p.stages,
+                    None => return Ok(None),
+                }
+            }
+        };
+        sched::pin_to(&cpus).with_context(|| format!("stage_cpus: pinning to CPUs {cpus:?}"))?;
+        Ok(Some(cpus))
+    }
+
     /// Whether frames are copied through Unix sockets (`transport = "copy"`).
     pub fn copies_frames(&self) -> Result<bool> {
         match self.transport.as_str() {
@@ -287,6 +353,14 @@ impl PipelineConfig {
             .ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
         Ok(ViewDatabase::load(path)?)
     }
+}
+
+/// CPU numbers as `stage_cpus` writes them (`2,3`).
+fn cpu_list(cpus: &[usize]) -> String {
+    cpus.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 #[cfg(test)]
@@ -353,10 +427,11 @@ mod tests {
             "[a-zA-Z0-9:/._ *-]{0,12}".prop_map(|v| format!("{v:?}")),
             Just("[]".to_string()),
             Just("[\"tcp/127.0.0.1:0\"]".to_string()),
+            Just("\"0,1\"".to_string()),
         ]
     }
 
-    const KEYS: [&str; 16] = [
+    const KEYS: [&str; 17] = [
         "object",
         "db",
         "source",
@@ -373,6 +448,7 @@ mod tests {
         "instance",
         "first_frame",
         "rerun",
+        "stage_cpus",
     ];
 
     proptest! {
@@ -402,6 +478,7 @@ mod tests {
                     prop_assert!((16..=8192).contains(&c.width) && (16..=8192).contains(&c.height));
                     prop_assert!(c.frame_history >= 1);
                     prop_assert!(c.copies_frames().is_ok());
+                    prop_assert!(c.stage_cpus().is_ok());
                     // What was accepted is written back and read the same.
                     let again = PipelineConfig::parse(&toml::to_string(&c).unwrap());
                     prop_assert!(again.is_ok(), "{:?}", again.err());

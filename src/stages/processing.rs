@@ -2,7 +2,7 @@
 
 use super::{PipelineConfig, ResultJson, Stage};
 use acch_confidence::Model as ConfidenceModel;
-use acch_core::{IndexImage, Palette, Rect, ViewDatabase};
+use acch_core::{IndexImage, IndexView, Palette, Rect, ViewDatabase};
 use acch_ipc::{Fused, ResultMsg, SeedPublisher, StageId};
 use acch_pose::{PoseEstimator, Refinement, Slice};
 use acch_recognition::{CellRect, Detection, Detector, RecognitionModel};
@@ -71,7 +71,6 @@ impl SizeGuard {
 pub struct Recognition {
     palette: Palette,
     detector: Detector,
-    index: IndexImage,
     scale: Option<f32>,
     size: SizeGuard,
 }
@@ -85,7 +84,6 @@ impl Recognition {
         Ok(Recognition {
             palette: db.palette.clone(),
             detector: Detector::new(model, width, height)?,
-            index: IndexImage::new(width, height, vec![0; width as usize * height as usize]),
             scale: scale_of(cfg, &db),
             size: SizeGuard::new("recognition", width, height),
         })
@@ -104,8 +102,14 @@ impl Stage for Recognition {
             return;
         }
         let (w, h) = (self.size.width, self.size.height);
-        self.palette.quantise_into(rgb, w, h, &mut self.index);
-        if let Some(d) = self.detector.detect(&self.index, self.scale) {
+        // Quantised straight into the published sample: later stages read
+        // these indices where they are.
+        let (index_out, counts_out) = out.split_at_mut(self.size.pixels());
+        self.palette.quantise_into_slice(rgb, index_out);
+        let Some(index) = IndexView::new(w, h, index_out) else {
+            return;
+        };
+        if let Some(d) = self.detector.detect(index, self.scale) {
             msg.found = 1;
             msg.window = [d.window.x, d.window.y, d.window.width, d.window.height].map(u64::from);
             msg.cells = [d.cells.x0, d.cells.y0, d.cells.x1, d.cells.y1].map(u64::from);
@@ -115,9 +119,7 @@ impl Stage for Recognition {
                 d.scale as f64,
                 d.truncated as u64 as f64,
             ];
-            // Nobody reads the indices of a frame without the object.
-            let (index_out, counts_out) = out.split_at_mut(self.index.data.len());
-            index_out.copy_from_slice(&self.index.data);
+            // Nobody reads the counts of a frame without the object.
             self.detector.write_colour_counts(counts_out);
         }
     }
@@ -127,12 +129,12 @@ impl Stage for Recognition {
 }
 
 /// Region growing from the detection over recognition's palette indices
-/// and cell counts; publishes the mask followed by the indices (pose's
-/// whole input).
+/// and cell counts, read in place; publishes the mask and the indices
+/// cropped to the mask's bounding box (the ROI, in the header): pose's whole
+/// input, `roi.width * roi.height` bytes each, mask first.
 pub struct Segmentation {
     detector: Detector,
     segmenter: Segmenter,
-    index: IndexImage,
     size: SizeGuard,
 }
 
@@ -145,9 +147,21 @@ impl Segmentation {
         Ok(Segmentation {
             detector: Detector::new(model, width, height)?,
             segmenter: Segmenter::new(width, height)?,
-            index: IndexImage::new(width, height, vec![0; width as usize * height as usize]),
             size: SizeGuard::new("segmentation", width, height),
         })
+    }
+}
+
+/// Copies `roi` of a `width`-pixel-wide one-byte-per-pixel frame into
+/// `out` (`roi.area()` bytes, row-major).
+fn crop(frame: &[u8], width: u32, roi: Rect, out: &mut [u8]) {
+    let (w, rw) = (width as usize, roi.width as usize);
+    if rw == 0 {
+        return;
+    }
+    for (y, dst) in (roi.y as usize..).zip(out.chunks_exact_mut(rw)) {
+        let at = y * w + roi.x as usize;
+        dst.copy_from_slice(&frame[at..at + rw]);
     }
 }
 
@@ -173,8 +187,10 @@ impl Stage for Segmentation {
             return;
         }
         let (index, counts) = input.split_at(n);
-        self.index.data.copy_from_slice(index);
-        if !self.detector.prepare_colours_from(&self.index, counts) {
+        let Some(index) = IndexView::new(self.size.width, self.size.height, index) else {
+            return;
+        };
+        if !self.detector.prepare_colours_from(index, counts) {
             return;
         }
         let det = Detection {
@@ -190,14 +206,16 @@ impl Stage for Segmentation {
             scale: msg.detection[2] as f32,
             truncated: msg.detection[3] != 0.0,
         };
-        let (mask_out, index_out) = out.split_at_mut(index.len());
-        if let Some(seg) = self.segmenter.segment(&self.index, &self.detector, &det)
-            && seg.mask.len() == mask_out.len()
+        if let Some(seg) = self.segmenter.segment(index, &self.detector, &det)
+            && seg.mask.len() == n
         {
-            mask_out.copy_from_slice(seg.mask);
-            index_out.copy_from_slice(index);
+            let roi = seg.roi.clamp_to(self.size.width, self.size.height);
+            let area = roi.area() as usize;
+            let (mask_out, index_out) = out[..2 * area].split_at_mut(area);
+            crop(seg.mask, self.size.width, roi, mask_out);
+            crop(index.data, self.size.width, roi, index_out);
             msg.segmented = 1;
-            msg.roi = [seg.roi.x, seg.roi.y, seg.roi.width, seg.roi.height].map(u64::from);
+            msg.roi = [roi.x, roi.y, roi.width, roi.height].map(u64::from);
         }
     }
     fn skipped(&self) -> u64 {
@@ -205,8 +223,8 @@ impl Stage for Segmentation {
     }
 }
 
-/// ACCH of the segmented ROI and the match-value response (published as
-/// the payload, f32 native-endian).
+/// ACCH of the segmented ROI (segmentation's crop) and the match-value
+/// response (published as the payload, f32 native-endian).
 pub struct Pose {
     estimator: PoseEstimator,
     index: IndexImage,
@@ -239,12 +257,23 @@ impl Stage for Pose {
         if msg.segmented != 1 || !self.size.fits(msg, input.len(), 2) {
             return;
         }
-        let (mask, index) = input.split_at(input.len() / 2);
-        self.index.data.copy_from_slice(index);
+        let roi = rect(msg.roi);
+        let area = roi.area() as usize;
+        if roi.clamp_to(self.size.width, self.size.height) != roi || area == 0 {
+            return;
+        }
+        let (mask, index) = input[..2 * area].split_at(area);
+        // The crop is small: one copy into a buffer sized for a whole frame
+        // (no allocation), as the estimator takes an owned image.
+        self.index.width = roi.width;
+        self.index.height = roi.height;
+        self.index.data.clear();
+        self.index.data.extend_from_slice(index);
+        let crop = Rect { x: 0, y: 0, ..roi };
         let Some(e) = self.estimator.estimate(
             &self.index,
             Some(mask),
-            rect(msg.roi),
+            crop,
             self.scale,
             Refinement::Parabolic,
         ) else {
@@ -501,6 +530,43 @@ impl Seeding {
 mod tests {
     use super::super::{FRAME_READERS, Stage};
     use super::*;
+
+    #[test]
+    fn a_cropped_mask_pastes_back_into_the_frame() {
+        let (w, h) = (13u32, 9u32);
+        let roi = Rect {
+            x: 3,
+            y: 2,
+            width: 6,
+            height: 5,
+        };
+        let mut mask = vec![0u8; (w * h) as usize];
+        for y in roi.y..roi.y + roi.height {
+            for x in roi.x..roi.x + roi.width {
+                mask[(y * w + x) as usize] = if (x + y) % 3 == 0 { 0 } else { 255 };
+            }
+        }
+        let mut payload = vec![7u8; 2 * (w * h) as usize];
+        crop(&mask, w, roi, &mut payload[..roi.area() as usize]);
+        let msg = ResultMsg {
+            width: w as u64,
+            height: h as u64,
+            roi: [roi.x, roi.y, roi.width, roi.height].map(u64::from),
+            ..Default::default()
+        };
+        let mut back = Vec::new();
+        assert!(crate::cmd::record::frame_mask(&msg, &payload, &mut back));
+        assert_eq!(back, mask);
+        // An ROI outside the frame is refused, not read out of bounds.
+        let outside = ResultMsg {
+            roi: [10, 2, 6, 5],
+            ..msg
+        };
+        assert!(!crate::cmd::record::frame_mask(
+            &outside, &payload, &mut back
+        ));
+        assert!(back.is_empty());
+    }
 
     #[test]
     fn frame_readers_are_the_stages_that_need_frames() {

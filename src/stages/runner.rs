@@ -76,12 +76,13 @@ pub(super) fn announce_ready(ipc: &Ipc, id: StageId) -> Result<()> {
 /// if needed, run the stage, publish, until SIGINT/SIGTERM.
 pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     let id = S::ID;
+    cfg.pin_stage()?;
     if cfg.realtime_priority > 0 {
         // Later stages above earlier ones (capture stays at the base): a
         // frame further down the chain is finished before the next one
         // starts, and capture's rendering never holds up a woken stage.
         let p = cfg.realtime_priority + id as u8;
-        crate::realtime::set_fifo(p)
+        acch_ipc::sched::set_fifo(p)
             .with_context(|| format!("{}: SCHED_FIFO priority {p}", id.name()))?;
     }
     let ipc = cfg.ipc(id.name())?;

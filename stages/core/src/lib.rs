@@ -16,4 +16,4 @@ pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
     match_value,
 };
-pub use palette::{ColourSpace, IndexImage, NOT_OBJECT, Palette, PaletteError};
+pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};

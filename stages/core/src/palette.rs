@@ -281,6 +281,20 @@ impl Palette {
         }
     }
 
+    /// Quantises a packed RGB frame into `out`, one index per pixel (for
+    /// example straight into a shared-memory sample); panics if the
+    /// lengths do not match.
+    pub fn quantise_into_slice(&self, rgb: &[u8], out: &mut [u8]) {
+        assert_eq!(
+            rgb.len(),
+            out.len() * 3,
+            "RGB buffer does not match the index buffer"
+        );
+        for (dst, px) in out.iter_mut().zip(rgb.chunks_exact(3)) {
+            *dst = self.index([px[0], px[1], px[2]]);
+        }
+    }
+
     /// Quantises a packed RGB frame into a new index image.
     pub fn quantise(&self, rgb: &[u8], width: u32, height: u32) -> IndexImage {
         let mut out = IndexImage::default();
@@ -315,6 +329,46 @@ impl IndexImage {
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> u8 {
         self.data[y as usize * self.width as usize + x as usize]
+    }
+
+    /// The image, borrowed.
+    pub fn view(&self) -> IndexView<'_> {
+        IndexView {
+            width: self.width,
+            height: self.height,
+            data: &self.data,
+        }
+    }
+}
+
+/// A borrowed frame of palette indices, row-major, one byte per pixel: an
+/// [`IndexImage`], or indices another process left in shared memory, read
+/// where they are.
+#[derive(Clone, Copy, Debug)]
+pub struct IndexView<'a> {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` palette indices (or [`NOT_OBJECT`]).
+    pub data: &'a [u8],
+}
+
+impl<'a> IndexView<'a> {
+    /// Views `data` as a `width` x `height` frame; `None` if the length
+    /// does not match.
+    pub fn new(width: u32, height: u32, data: &'a [u8]) -> Option<Self> {
+        (data.len() == width as usize * height as usize).then_some(IndexView {
+            width,
+            height,
+            data,
+        })
+    }
+}
+
+impl<'a> From<&'a IndexImage> for IndexView<'a> {
+    fn from(image: &'a IndexImage) -> Self {
+        image.view()
     }
 }
 

@@ -1,6 +1,6 @@
 //! The per-frame window scan.
 
-use acch_core::{IndexImage, NOT_OBJECT, Rect};
+use acch_core::{IndexView, NOT_OBJECT, Rect};
 
 use crate::model::{RecognitionError, RecognitionModel};
 
@@ -274,7 +274,8 @@ impl Detector {
     /// Computes the per-cell counts of a frame and their integral over the
     /// cell grid. [`Detector::detect`] calls it; call it directly to scan one
     /// frame at several scales with [`Detector::scan`].
-    pub fn prepare(&mut self, image: &IndexImage) {
+    pub fn prepare<'a>(&mut self, image: impl Into<IndexView<'a>>) {
+        let image = image.into();
         if image.width != self.width || image.height != self.height {
             self.resize(image.width, image.height);
         }
@@ -379,7 +380,12 @@ impl Detector {
     /// unavailable until the next [`Detector::prepare`]. `image` is the
     /// same frame (for its size). Returns false, leaving nothing prepared,
     /// when the sizes do not match.
-    pub fn prepare_colours_from(&mut self, image: &IndexImage, counts: &[u8]) -> bool {
+    pub fn prepare_colours_from<'a>(
+        &mut self,
+        image: impl Into<IndexView<'a>>,
+        counts: &[u8],
+    ) -> bool {
+        let image = image.into();
         self.prepared = false;
         if image.width != self.width
             || image.height != self.height
@@ -547,7 +553,11 @@ impl Detector {
     /// the distance); `None` assumes the training distance (segmentation
     /// then adapts the region to the actual size). `None` is returned when
     /// no window reaches the model's threshold: the object is not in view.
-    pub fn detect(&mut self, image: &IndexImage, scale: Option<f32>) -> Option<Detection> {
+    pub fn detect<'a>(
+        &mut self,
+        image: impl Into<IndexView<'a>>,
+        scale: Option<f32>,
+    ) -> Option<Detection> {
         self.prepare(image);
         self.scan(scale.unwrap_or(1.0))
     }

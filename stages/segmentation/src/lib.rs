@@ -33,7 +33,7 @@
 
 #![warn(missing_docs)]
 
-use acch_core::{IndexImage, Rect};
+use acch_core::{IndexView, Rect};
 use acch_recognition::{CellRect, Detection, Detector};
 
 /// Why a segmenter could not be used.
@@ -148,12 +148,13 @@ impl Segmenter {
     /// Grows `detection` (from `detector`'s last frame, `image`) into a pixel
     /// mask. Returns `None` when no cell of the window resembles the object,
     /// or when `detector` last prepared a frame of another size.
-    pub fn segment(
+    pub fn segment<'a>(
         &mut self,
-        image: &IndexImage,
+        image: impl Into<IndexView<'a>>,
         detector: &Detector,
         detection: &Detection,
     ) -> Option<Segment<'_>> {
+        let image = image.into();
         if image.width != self.width || image.height != self.height {
             self.resize(image.width, image.height);
         }
