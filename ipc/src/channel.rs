@@ -64,9 +64,15 @@ fn err<E: Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
     move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
 }
 
+/// The flavour of the stages' wake-up events.
+type WakeSvc = crate::service::FutexService;
+
 /// One process's handle on iceoryx2.
 pub struct Ipc {
     node: Node<Svc>,
+    /// The node of the stages' wake-up events (another flavour, so another
+    /// node).
+    wake_node: Node<WakeSvc>,
     names: Names,
     qos: Qos,
 }
@@ -78,7 +84,16 @@ impl Ipc {
             .name(&NodeName::new(node_name).map_err(err("node name"))?)
             .create::<Svc>()
             .map_err(err("creating the node"))?;
-        Ok(Ipc { node, names, qos })
+        let wake_node = NodeBuilder::new()
+            .name(&NodeName::new(node_name).map_err(err("node name"))?)
+            .create::<WakeSvc>()
+            .map_err(err("creating the wake-up node"))?;
+        Ok(Ipc {
+            node,
+            wake_node,
+            names,
+            qos,
+        })
     }
 
     /// False once the process was asked to terminate (SIGINT, SIGTERM).
@@ -141,6 +156,36 @@ impl Ipc {
             .map_err(err("event service"))
     }
 
+    /// The wake-up event of stream `what`: the one consumer that is the
+    /// next stage sleeps on it; a restarted stage's ports join those of the
+    /// dead one until the launcher cleans them up.
+    fn wake_event(
+        &self,
+        what: &str,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<WakeSvc>, IpcError> {
+        self.wake_node
+            .service_builder(&self.names.name(&format!("{what}/wake"))?)
+            .event()
+            .max_listeners(4)
+            .max_notifiers(4)
+            .open_or_create()
+            .map_err(err("wake-up event service"))
+    }
+
+    fn wake_notifier(&self, what: &str) -> Result<Notifier<WakeSvc>, IpcError> {
+        self.wake_event(what)?
+            .notifier_builder()
+            .create()
+            .map_err(err("wake-up notifier"))
+    }
+
+    fn wake_listener(&self, what: &str) -> Result<Listener<WakeSvc>, IpcError> {
+        self.wake_event(what)?
+            .listener_builder()
+            .create()
+            .map_err(err("wake-up listener"))
+    }
+
     /// The frame publisher (capture).
     pub fn frame_output(&self) -> Result<Output<FrameHeader>, IpcError> {
         let publisher = self
@@ -157,8 +202,17 @@ impl Ipc {
             .map_err(err("frame notifier"))?;
         Ok(Output {
             publisher,
+            wake: self.wake_notifier("frames")?,
             notifier,
         })
+    }
+
+    /// The first stage's frame subscriber: sleeps on the frames' wake-up
+    /// event ([`Input::wait_blocking`]).
+    pub fn frame_stage_input(&self) -> Result<Input<FrameHeader>, IpcError> {
+        let mut input = self.frame_input(false)?;
+        input.wake = Some(self.wake_listener("frames")?);
+        Ok(input)
     }
 
     /// A frame subscriber; `wake` = also listen for the frame event.
@@ -181,6 +235,7 @@ impl Ipc {
         Ok(Input {
             subscriber,
             listener,
+            wake: None,
         })
     }
 
@@ -204,7 +259,23 @@ impl Ipc {
             .map_err(err("result notifier"))?;
         Ok(Output {
             publisher,
+            wake: self.wake_notifier(stage.name())?,
             notifier,
+        })
+    }
+
+    /// The next stage's subscriber to `stage`'s results: sleeps on the
+    /// stream's wake-up event ([`Input::wait_blocking`]).
+    pub fn result_stage_input(&self, stage: StageId) -> Result<Input<ResultMsg>, IpcError> {
+        let subscriber = self
+            .result_service(stage)?
+            .subscriber_builder()
+            .create()
+            .map_err(err("result subscriber"))?;
+        Ok(Input {
+            subscriber,
+            listener: None,
+            wake: Some(self.wake_listener(stage.name())?),
         })
     }
 
@@ -224,6 +295,7 @@ impl Ipc {
         Ok(Input {
             subscriber,
             listener,
+            wake: None,
         })
     }
 
@@ -244,9 +316,11 @@ impl Ipc {
     }
 }
 
-/// Publishes a header + `[u8]` payload and wakes the consumers.
+/// Publishes a header + `[u8]` payload and wakes the consumers: the next
+/// stage first, on its wake-up event, then everyone else.
 pub struct Output<H: Debug + ZeroCopySend + 'static> {
     publisher: Publisher<Svc, [u8], H>,
+    wake: Notifier<WakeSvc>,
     notifier: Notifier<Svc>,
 }
 
@@ -278,6 +352,7 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
         let n = sample.send().map_err(err("send"))?;
+        self.wake.notify().map_err(err("wake"))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
@@ -306,6 +381,7 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         *sample.user_header_mut() = header;
         let n = sample.send().map_err(err("send"))?;
+        self.wake.notify().map_err(err("wake"))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
@@ -315,6 +391,8 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
 pub struct Input<H: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<Svc, [u8], H>,
     listener: Option<Listener<Svc>>,
+    /// A stage's input: its wake-up event.
+    wake: Option<Listener<WakeSvc>>,
 }
 
 impl<H: Debug + ZeroCopySend + 'static> Input<H> {
@@ -329,6 +407,21 @@ impl<H: Debug + ZeroCopySend + 'static> Input<H> {
             }
         }
         Ok(())
+    }
+
+    /// A stage's wait: asleep in the kernel, with no timeout, until the
+    /// upstream stage's wake-up or a signal (the caller then checks
+    /// `keep_running`; the launcher repeats its stop signal in case it came
+    /// just before the sleep). Drains the pending wake-ups. An input
+    /// without a wake-up event waits on its event, up to `timeout`.
+    pub fn wait_blocking(&self, timeout: Duration) -> Result<(), IpcError> {
+        match &self.wake {
+            Some(l) => match l.blocking_wait(|_| {}) {
+                Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
+                Err(e) => Err(err("wait")(e)),
+            },
+            None => self.wait(timeout),
+        }
     }
 
     /// The next queued sample, if any.

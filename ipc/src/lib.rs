@@ -10,6 +10,7 @@
 pub mod channel;
 pub mod msg;
 pub mod sched;
+pub mod service;
 pub mod shm;
 pub mod zenoh_io;
 
@@ -33,12 +34,17 @@ pub enum IpcError {
 }
 
 /// Removes the shared-memory resources of dead iceoryx2 nodes (a crashed
-/// or killed stage). Returns how many nodes were cleaned.
+/// or killed stage), of both flavours a process uses. Returns how many
+/// nodes were cleaned.
 pub fn remove_stale_resources() -> usize {
+    remove_stale::<Svc>() + remove_stale::<service::FutexService>()
+}
+
+fn remove_stale<S: iceoryx2::service::Service>() -> usize {
     use iceoryx2::prelude::*;
     let mut n = 0;
-    let _ = Node::<Svc>::list(Config::global_config(), |state| {
-        if let NodeState::<Svc>::Dead(view) = state
+    let _ = Node::<S>::list(Config::global_config(), |state| {
+        if let NodeState::<S>::Dead(view) = state
             && view.try_remove_stale_resources().is_ok()
         {
             n += 1;

@@ -37,6 +37,7 @@ impl Children {
         let until = Instant::now() + grace;
         for p in &mut self.0 {
             let (id, c) = (p.name, &mut p.child);
+            let mut polls = 0u32;
             loop {
                 match c.try_wait() {
                     Ok(Some(status)) => {
@@ -46,7 +47,15 @@ impl Children {
                         break;
                     }
                     Ok(None) if Instant::now() < until => {
-                        std::thread::sleep(Duration::from_millis(20))
+                        std::thread::sleep(Duration::from_millis(20));
+                        polls += 1;
+                        if polls % 5 == 0 {
+                            // A stage sleeps on its input with no timeout; a
+                            // signal that came just before it went to sleep
+                            // did not wake it, so say it again.
+                            // SAFETY: kill(2) on our own child's pid.
+                            unsafe { libc::kill(c.id() as libc::pid_t, libc::SIGINT) };
+                        }
                     }
                     _ => {
                         tracing::warn!("{id} did not stop in time: killed");

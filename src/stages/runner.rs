@@ -101,15 +101,17 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     } else {
         None
     };
-    let frames = if from_frames || (S::NEEDS_FRAME && !copying) {
-        Some(ipc.frame_input(from_frames)?)
+    let frames = if from_frames {
+        Some(ipc.frame_stage_input()?)
+    } else if S::NEEDS_FRAME && !copying {
+        Some(ipc.frame_input(false)?)
     } else {
         None
     };
     let results = if from_frames {
         None
     } else {
-        Some(ipc.result_input(upstream)?)
+        Some(ipc.result_stage_input(upstream)?)
     };
     let output = ipc.result_output(id, stage.payload_len())?;
     let mut history = FrameHistory::new(cfg.frame_history);
@@ -123,10 +125,11 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     };
     let mut last_in = None;
     while ipc.keep_running() {
+        // Asleep until the upstream stage's wake-up or a stop signal.
         if let Some(r) = &results {
-            r.wait(WAIT)?;
+            r.wait_blocking(WAIT)?;
         } else if let Some(f) = &frames {
-            f.wait(WAIT)?;
+            f.wait_blocking(WAIT)?;
         }
         loop {
             let mut msg;

@@ -105,6 +105,9 @@ pub struct Detector {
     window_cells: u32,
     best: f32,
     prepared: bool,
+    /// Whether every pair feature of `cell_counts` is zero (as after
+    /// [`Detector::prepare_colours_from`]), so it need not be cleared again.
+    pairs_zero: bool,
 }
 
 impl Detector {
@@ -176,6 +179,7 @@ impl Detector {
             window_cells: 0,
             best: 0.0,
             prepared: false,
+            pairs_zero: true,
         };
         det.resize(width, height);
         Ok(det)
@@ -191,6 +195,7 @@ impl Detector {
         self.cell_counts = vec![0; self.gx * self.gy * self.nf];
         self.integral = vec![0.0; (self.gx + 1) * (self.gy + 1) * self.nf];
         self.prepared = false;
+        self.pairs_zero = true;
     }
 
     /// The model.
@@ -227,9 +232,27 @@ impl Detector {
     }
 
     /// Sums of every feature over a rectangle of cells of the last prepared
-    /// frame, into `out` (length of the cell stride).
+    /// frame, into `out` (length of the cell stride). After
+    /// [`Detector::prepare_colours_from`] the colour features are summed
+    /// cell by cell (a region is a small part of the grid, and building the
+    /// integral of the whole grid cost more than the sums) and the pair
+    /// features are zero; both ways the sums are exact (integer counts
+    /// below 2^24 in f32).
     pub fn sum_cells(&self, r: CellRect, out: &mut [f32]) {
         let nf = self.nf;
+        if !self.prepared {
+            let k = self.colour_features();
+            out.iter_mut().take(nf).for_each(|o| *o = 0.0);
+            for cy in r.y0 as usize..r.y1 as usize {
+                for cx in r.x0 as usize..r.x1 as usize {
+                    let at = (cy * self.gx + cx) * nf;
+                    for (o, &c) in out.iter_mut().zip(&self.cell_counts[at..at + k]) {
+                        *o += c as f32;
+                    }
+                }
+            }
+            return;
+        }
         let row = self.gx + 1;
         let at = |x: u32, y: u32| (y as usize * row + x as usize) * nf;
         let (a, b, c, d) = (
@@ -343,6 +366,7 @@ impl Detector {
         }
         self.build_integral(self.nf);
         self.prepared = true;
+        self.pairs_zero = false;
     }
 
     /// Features per cell that segmentation reads: the C colours and "not
@@ -373,8 +397,8 @@ impl Detector {
         }
     }
 
-    /// Prepares the colour features of a frame (per-cell counts and their
-    /// integral: what segmentation reads) from the colour counts another
+    /// Prepares the colour features of a frame (per-cell counts: what
+    /// segmentation reads; no integral) from the colour counts another
     /// detector with the same model wrote, skipping the pass over the
     /// pixels. Pair features stay zero and [`Detector::scan`] stays
     /// unavailable until the next [`Detector::prepare`]. `image` is the
@@ -402,9 +426,11 @@ impl Detector {
             for (c, b) in cell[..k].iter_mut().zip(src.chunks_exact(2)) {
                 *c = u16::from_ne_bytes([b[0], b[1]]);
             }
-            cell[k..].fill(0);
+            if !self.pairs_zero {
+                cell[k..].fill(0);
+            }
         }
-        self.build_integral(k);
+        self.pairs_zero = true;
         true
     }
 

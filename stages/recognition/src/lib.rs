@@ -189,6 +189,16 @@ mod tests {
         }
         // Only colours were prepared: no window scan on them.
         assert_eq!(second.scan(1.0), None);
+        // After a full preparation (pairs counted) the pairs are cleared.
+        second.detect(&image, Some(1.0)).expect("found");
+        assert!(second.prepare_colours_from(&image, &bytes));
+        for (cx, cy) in [(0, 0), (gx / 2, gy / 2), (gx - 1, gy - 1)] {
+            assert!(second.cell_counts(cx, cy)[c + 1..].iter().all(|&n| n == 0));
+        }
+        second.sum_cells(found.cells, &mut b);
+        first.sum_cells(found.cells, &mut a);
+        assert_eq!(a[..=c], b[..=c]);
+        assert!(b[c + 1..].iter().all(|&v| v == 0.0));
         // Counts of another size prepare nothing.
         assert!(!second.prepare_colours_from(&image, &bytes[2..]));
     }
