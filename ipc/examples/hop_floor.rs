@@ -9,7 +9,13 @@
 //! cargo run --release -p acch-ipc --example hop_floor              # two CPUs
 //! cargo run --release -p acch-ipc --example hop_floor -- --same-cpu
 //! cargo run --release -p acch-ipc --example hop_floor -- --same-cpu --rt 20
+//! cargo run --release -p acch-ipc --example hop_floor -- --same-cpu --socket
 //! ```
+//!
+//! The subscriber sleeps as a stage does, on the stream's shared-memory
+//! semaphore ([`Input::wait_blocking`](acch_ipc::Input::wait_blocking));
+//! `--socket` makes it sleep on the Unix-datagram event instead, as the
+//! launcher and the observers do (and the stages did before).
 //!
 //! `--same-cpu` puts both processes on the last allowed CPU (as
 //! `stage_cpus = "auto"` does with the stages); `--rt P` runs the publisher
@@ -43,6 +49,7 @@ fn summary(mut v: Vec<f64>) -> String {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let same_cpu = args.iter().any(|a| a == "--same-cpu");
+    let socket = args.iter().any(|a| a == "--socket");
     let rt: Option<u8> = match args.iter().position(|a| a == "--rt") {
         Some(i) => Some(args.get(i + 1).ok_or("--rt needs a priority")?.parse()?),
         None => None,
@@ -56,10 +63,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             set_fifo(p + 1)?;
         }
         let ipc = Ipc::new(Names::new(instance), "hop-subscriber", QOS)?;
-        let input = ipc.result_input(StageId::Recognition)?;
+        let input = if socket {
+            ipc.result_input(StageId::Recognition)?
+        } else {
+            ipc.result_stage_input(StageId::Recognition)?
+        };
         let mut latency = Vec::with_capacity(MESSAGES);
         while latency.len() < MESSAGES && ipc.keep_running() {
-            input.wait(Duration::from_millis(200))?;
+            input.wait_blocking(Duration::from_millis(200))?;
             while let Some(s) = input.receive()? {
                 let sent = s.user_header().trail.stages[0].published_ns;
                 latency.push(now_ns().saturating_sub(sent) as f64 / 1e3);
@@ -96,7 +107,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let status = subscriber.wait()?;
     println!(
-        "{}, {}: send + notify: {}",
+        "{}, {}, {}: send + notify: {}",
+        if socket { "socket" } else { "semaphore" },
         if same_cpu { "one CPU" } else { "two CPUs" },
         rt.map_or("normal scheduler".into(), |p| format!("SCHED_FIFO {p}")),
         summary(cost)

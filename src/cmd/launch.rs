@@ -49,7 +49,7 @@ impl Children {
                     Ok(None) if Instant::now() < until => {
                         std::thread::sleep(Duration::from_millis(20));
                         polls += 1;
-                        if polls % 5 == 0 {
+                        if polls.is_multiple_of(5) {
                             // A stage sleeps on its input with no timeout; a
                             // signal that came just before it went to sleep
                             // did not wake it, so say it again.
