@@ -377,22 +377,40 @@ impl Detector {
 
     /// Bytes of the colour counts [`Detector::write_colour_counts`] writes.
     pub fn colour_counts_bytes(&self) -> usize {
-        self.gx * self.gy * self.colour_features() * 2
+        self.gx * self.gy * self.colour_features() * self.count_bytes()
+    }
+
+    /// Bytes per published count: one when a cell holds at most 255 pixels
+    /// (the default 8x8 cells; half the bytes to write and read), else two.
+    fn count_bytes(&self) -> usize {
+        if self.cell * self.cell <= u8::MAX as usize {
+            1
+        } else {
+            2
+        }
     }
 
     /// Writes every cell's colour counts of the last prepared frame (cells
-    /// row-major, C + 1 native-endian `u16`s each) into `out`, which must be
-    /// [`Detector::colour_counts_bytes`] long: what another process needs
-    /// to [`Detector::prepare_colours_from`] the same frame.
+    /// row-major, C + 1 counts each: one byte each when a cell holds at
+    /// most 255 pixels, else native-endian `u16`s) into `out`, which must
+    /// be [`Detector::colour_counts_bytes`] long: what another process
+    /// needs to [`Detector::prepare_colours_from`] the same frame.
     pub fn write_colour_counts(&self, out: &mut [u8]) {
-        let (nf, k) = (self.nf, self.colour_features());
+        let (nf, k, b) = (self.nf, self.colour_features(), self.count_bytes());
         for (cell, dst) in self
             .cell_counts
             .chunks_exact(nf)
-            .zip(out.chunks_exact_mut(k * 2))
+            .zip(out.chunks_exact_mut(k * b))
         {
-            for (d, c) in dst.chunks_exact_mut(2).zip(&cell[..k]) {
-                d.copy_from_slice(&c.to_ne_bytes());
+            if b == 1 {
+                // A count never exceeds the cell's pixels (<= 255 here).
+                for (d, &c) in dst.iter_mut().zip(&cell[..k]) {
+                    *d = c as u8;
+                }
+            } else {
+                for (d, c) in dst.chunks_exact_mut(2).zip(&cell[..k]) {
+                    d.copy_from_slice(&c.to_ne_bytes());
+                }
             }
         }
     }
@@ -418,13 +436,20 @@ impl Detector {
             return false;
         }
         let (nf, k) = (self.nf, self.colour_features());
+        let b = self.count_bytes();
         for (cell, src) in self
             .cell_counts
             .chunks_exact_mut(nf)
-            .zip(counts.chunks_exact(k * 2))
+            .zip(counts.chunks_exact(k * b))
         {
-            for (c, b) in cell[..k].iter_mut().zip(src.chunks_exact(2)) {
-                *c = u16::from_ne_bytes([b[0], b[1]]);
+            if b == 1 {
+                for (c, &s) in cell[..k].iter_mut().zip(src) {
+                    *c = u16::from(s);
+                }
+            } else {
+                for (c, s) in cell[..k].iter_mut().zip(src.chunks_exact(2)) {
+                    *c = u16::from_ne_bytes([s[0], s[1]]);
+                }
             }
             if !self.pairs_zero {
                 cell[k..].fill(0);

@@ -92,6 +92,10 @@ mod tests {
     }
 
     fn model() -> RecognitionModel {
+        model_with_cells(RecognitionParams::default().cell_px)
+    }
+
+    fn model_with_cells(cell_px: u16) -> RecognitionModel {
         let frames: Vec<_> = [(10, 10), (60, 40), (100, 70)]
             .iter()
             .map(|&at| frame(Some(at), |_, _| GREY))
@@ -110,6 +114,7 @@ mod tests {
             .collect();
         let params = RecognitionParams {
             pairs: 8,
+            cell_px,
             ..RecognitionParams::default()
         };
         RecognitionModel::train(&views, &palette(), &params).unwrap()
@@ -167,6 +172,8 @@ mod tests {
         assert!(second.prepare_colours_from(&image, &bytes));
         let (c, _, nf) = first.layout();
         let (gx, gy) = first.grid();
+        // 8x8 cells: one byte per count.
+        assert_eq!(bytes.len(), gx * gy * (c + 1));
         for (cx, cy) in [(0, 0), (gx / 2, gy / 2), (gx - 1, gy - 1)] {
             assert_eq!(
                 first.cell_counts(cx, cy)[..=c],
@@ -201,6 +208,31 @@ mod tests {
         assert!(b[c + 1..].iter().all(|&v| v == 0.0));
         // Counts of another size prepare nothing.
         assert!(!second.prepare_colours_from(&image, &bytes[2..]));
+    }
+
+    #[test]
+    fn colour_counts_of_cells_over_255_pixels_travel_as_u16() {
+        let (rgb, _) = frame(Some((60, 40)), |_, _| GREY);
+        let image = quantised(&rgb);
+        let mut first = Detector::new(model_with_cells(16), W, H).unwrap();
+        first.prepare(&image);
+        let (c, _, _) = first.layout();
+        let (gx, gy) = first.grid();
+        let mut bytes = vec![0u8; first.colour_counts_bytes()];
+        assert_eq!(bytes.len(), gx * gy * (c + 1) * 2);
+        first.write_colour_counts(&mut bytes);
+        let mut second = Detector::new(model_with_cells(16), W, H).unwrap();
+        assert!(second.prepare_colours_from(&image, &bytes));
+        let mut saw_over_255 = false;
+        for cy in 0..gy {
+            for cx in 0..gx {
+                let counts = &first.cell_counts(cx, cy)[..=c];
+                saw_over_255 |= counts.iter().any(|&n| n > 255);
+                assert_eq!(counts, &second.cell_counts(cx, cy)[..=c]);
+            }
+        }
+        // A 16x16 cell of background alone counts 256 "not object" pixels.
+        assert!(saw_over_255);
     }
 
     #[test]
