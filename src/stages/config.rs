@@ -179,8 +179,7 @@ impl PipelineConfig {
                 "must be 0 (off) or 1..=90",
             ));
         }
-        if let Err(why) = self.stage_cpus.parse::<StageCpus>() {
-            tracing::debug!("stage_cpus: {why}");
+        if self.stage_cpus.parse::<StageCpus>().is_err() {
             return Err(bad(
                 "stage_cpus",
                 &self.stage_cpus,
