@@ -144,7 +144,9 @@ impl Pipeline {
             return result;
         };
         let t = Instant::now();
-        let segment = self.segmenter.segment(&self.index, &self.detector, &det);
+        let segment = self
+            .segmenter
+            .segment_detected(&self.index, &self.detector, &det);
         result.times.segmentation_ns = t.elapsed().as_nanos() as u64;
         let Some(segment) = segment else {
             return result;

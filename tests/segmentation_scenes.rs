@@ -10,7 +10,7 @@ use acch_capture::{
 };
 use acch_core::{IndexImage, ViewDatabase};
 use acch_pose::train::{LabelledView, TrainConfig, build_database};
-use acch_recognition::{Detection, Detector, RecognitionModel, RecognitionParams};
+use acch_recognition::{Detection, Detector, RecognitionModel, RecognitionParams, RegionCounts};
 use acch_segmentation::Segmenter;
 use std::sync::{Arc, OnceLock};
 
@@ -113,7 +113,9 @@ impl Run {
     /// Detection and mask (a copy), or `None` when not found.
     fn segment(&mut self, t: &Trained, rgb: &[u8]) -> Option<(Detection, Vec<u8>)> {
         let d = self.detect(t, rgb)?;
-        let s = self.segmenter.segment(&self.index, &self.detector, &d)?;
+        let s = self
+            .segmenter
+            .segment_detected(&self.index, &self.detector, &d)?;
         Some((d, s.mask.to_vec()))
     }
 }
@@ -137,6 +139,50 @@ fn detection_lands_on_the_object() {
             );
             assert!(!d.truncated);
             assert!(d.score >= d.threshold);
+        }
+    }
+}
+
+/// What recognition publishes for segmentation (the search area's counts
+/// and the ring's sums) segments exactly as the detector's own counts, and
+/// is a small part of the grid's counts.
+#[test]
+fn published_region_counts_segment_rendered_scenes_exactly_and_are_small() {
+    let t = fruitbox();
+    let mut run = Run::new(t);
+    let mut other = Segmenter::new(640, 480).unwrap();
+    for (k, bg) in ["A", "B", "C", "clutter-similar"].iter().enumerate() {
+        for (theta, phi) in [(50.0, 15.0), (88.0, 300.0)] {
+            let f = renderer(&t.object, bg.parse().unwrap(), 30 + k as u64, 0.0)
+                .render(&view(theta, phi), 3);
+            let d = run.detect(t, f.image.as_raw()).expect("found");
+            let own = run.detector.region_counts(&d).expect("prepared");
+            let layout = run.detector.count_layout();
+            let (gx, gy) = layout.grid();
+            let mut bytes = vec![0u8; RegionCounts::published_len(layout, own.search())];
+            assert!(own.publish(&mut bytes));
+            let all = RegionCounts::published_len(layout, layout.all_cells());
+            eprintln!(
+                "{bg} θ {theta} φ {phi}: {} of {all} bytes ({} cells of {})",
+                bytes.len(),
+                own.search().width() * own.search().height(),
+                gx * gy
+            );
+            assert!(
+                bytes.len() * 3 < all,
+                "{bg}: {} of {all} bytes",
+                bytes.len()
+            );
+            let published = RegionCounts::from_bytes(layout, own.search(), &bytes).unwrap();
+            let a = run
+                .segmenter
+                .segment(&run.index, &own, &t.model, &d)
+                .expect("segmented");
+            let b = other
+                .segment(&run.index, &published, &t.model, &d)
+                .expect("segmented");
+            assert_eq!((a.roi, a.area), (b.roi, b.area), "{bg} θ {theta} φ {phi}");
+            assert!(a.mask == b.mask, "{bg} θ {theta} φ {phi}: masks differ");
         }
     }
 }
@@ -262,7 +308,7 @@ fn other_distances_work_with_the_known_scale_and_without_it() {
                 .unwrap_or_else(|| panic!("distance {distance}, scale {s:?}: not found"));
             let seg = run
                 .segmenter
-                .segment(&img, &run.detector, &d)
+                .segment_detected(&img, &run.detector, &d)
                 .expect("segmented");
             let io = iou(seg.mask, f.mask.as_raw());
             eprintln!("distance {distance} scale {s:?}: IoU {io:.3}");

@@ -8,6 +8,11 @@ use acch_record::{TOPIC_RESULT, read_json};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::sync::Mutex;
+
+/// Pipelines share 2 cores: one at a time, or three pipelines' stages on
+/// the one stage CPU stall each other until frames overflow their queues.
+static SERIAL: Mutex<()> = Mutex::new(());
 
 fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
@@ -29,6 +34,7 @@ fn config(dir: &Path) -> PathBuf {
 }
 
 fn acch_run(dir: &Path, args: &[&str]) -> Output {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let out = Command::new(env!("CARGO_BIN_EXE_acch"))
         .arg("run")
         .arg("--config")

@@ -97,8 +97,10 @@ impl Ipc {
     }
 
     /// False once the process was asked to terminate (SIGINT, SIGTERM).
+    /// Reads the flag iceoryx2's signal handler sets (what `Node::wait`
+    /// checks, without its `nanosleep`, a system call on every hop's path).
     pub fn keep_running(&self) -> bool {
-        self.node.wait(Duration::ZERO).is_ok()
+        !iceoryx2_bb_posix::signal::SignalHandler::termination_requested()
     }
 
     fn frame_service(

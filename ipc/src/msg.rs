@@ -241,6 +241,12 @@ pub struct ResultMsg {
     pub cells: [u64; 4],
     /// Detection score, threshold, scale; truncated (1/0).
     pub detection: [f64; 4],
+    /// Side in cells of the scan's window, before it was cut to the frame.
+    pub window_cells: u64,
+    /// Segmentation's search area in cells x0, y0, x1, y1: recognition's
+    /// payload holds its colour counts (and the ring's sums) after the
+    /// indices.
+    pub search_cells: [u64; 4],
     /// 1 when segmentation produced a mask.
     pub segmented: u64,
     /// ROI (mask bounding box) x, y, width, height.

@@ -5,7 +5,9 @@ use acch_confidence::Model as ConfidenceModel;
 use acch_core::{IndexImage, IndexView, Palette, Rect, ViewDatabase};
 use acch_ipc::{Fused, ResultMsg, SeedPublisher, StageId};
 use acch_pose::{PoseEstimator, Refinement, Slice};
-use acch_recognition::{CellRect, Detection, Detector, RecognitionModel};
+use acch_recognition::{
+    CellRect, CountLayout, Detection, Detector, RecognitionModel, RegionCounts,
+};
 use acch_seeding::{FilterConfig, FusionError, Measurement, Outcome, ViewFilter, theta_censored};
 use acch_segmentation::Segmenter;
 use anyhow::{Context, Result, anyhow};
@@ -66,7 +68,9 @@ impl SizeGuard {
 }
 
 /// Quantisation + window scan; publishes the frame's palette indices (one
-/// byte per pixel) and the detector's per-cell counts, so later stages
+/// byte per pixel) and, when the object is found, the colour counts
+/// segmentation reads ([`RegionCounts`]: the cells of its search area, in
+/// the header's `search_cells`, and the ring's sums), so later stages
 /// neither touch the pixels nor count them again.
 pub struct Recognition {
     palette: Palette,
@@ -94,7 +98,9 @@ impl Stage for Recognition {
     const ID: StageId = StageId::Recognition;
     const NEEDS_FRAME: bool = true;
     fn payload_len(&self) -> usize {
-        self.size.pixels() + self.detector.colour_counts_bytes()
+        // Room for the counts of every cell: a search area may fill the grid.
+        let layout = self.detector.count_layout();
+        self.size.pixels() + RegionCounts::published_len(layout, layout.all_cells())
     }
     fn process(&mut self, msg: &mut ResultMsg, _: &[u8], frame: Option<&[u8]>, out: &mut [u8]) {
         let Some(rgb) = frame else { return };
@@ -109,31 +115,50 @@ impl Stage for Recognition {
         let Some(index) = IndexView::new(w, h, index_out) else {
             return;
         };
-        if let Some(d) = self.detector.detect(index, self.scale) {
-            msg.found = 1;
-            msg.window = [d.window.x, d.window.y, d.window.width, d.window.height].map(u64::from);
-            msg.cells = [d.cells.x0, d.cells.y0, d.cells.x1, d.cells.y1].map(u64::from);
-            msg.detection = [
-                d.score as f64,
-                d.threshold as f64,
-                d.scale as f64,
-                d.truncated as u64 as f64,
-            ];
-            // Nobody reads the counts of a frame without the object.
-            self.detector.write_colour_counts(counts_out);
+        let Some(d) = self.detector.detect(index, self.scale) else {
+            return;
+        };
+        let Some(region) = self.detector.region_counts(&d) else {
+            return;
+        };
+        let search = region.search();
+        let len = RegionCounts::published_len(self.detector.count_layout(), search);
+        if !region.publish(&mut counts_out[..len]) {
+            return;
         }
+        msg.found = 1;
+        msg.window = [d.window.x, d.window.y, d.window.width, d.window.height].map(u64::from);
+        msg.cells = cells_msg(d.cells);
+        msg.detection = [
+            d.score as f64,
+            d.threshold as f64,
+            d.scale as f64,
+            d.truncated as u64 as f64,
+        ];
+        msg.window_cells = u64::from(d.window_cells);
+        msg.search_cells = cells_msg(search);
     }
     fn skipped(&self) -> u64 {
         self.size.skipped
     }
 }
 
+fn cells_msg(r: CellRect) -> [u64; 4] {
+    [r.x0, r.y0, r.x1, r.y1].map(u64::from)
+}
+
+fn cells_of(v: [u64; 4]) -> CellRect {
+    let [x0, y0, x1, y1] = v.map(|c| c.min(u64::from(u32::MAX)) as u32);
+    CellRect { x0, y0, x1, y1 }
+}
+
 /// Region growing from the detection over recognition's palette indices
-/// and cell counts, read in place; publishes the mask and the indices
-/// cropped to the mask's bounding box (the ROI, in the header): pose's whole
-/// input, `roi.width * roi.height` bytes each, mask first.
+/// and region colour counts, read in place; publishes the mask and the
+/// indices cropped to the mask's bounding box (the ROI, in the header):
+/// pose's whole input, `roi.width * roi.height` bytes each, mask first.
 pub struct Segmentation {
-    detector: Detector,
+    model: RecognitionModel,
+    layout: CountLayout,
     segmenter: Segmenter,
     size: SizeGuard,
 }
@@ -145,7 +170,8 @@ impl Segmentation {
         let model = RecognitionModel::from_database(&db)?
             .ok_or_else(|| anyhow!("the database has no recognition model"))?;
         Ok(Segmentation {
-            detector: Detector::new(model, width, height)?,
+            layout: CountLayout::new(&model, width, height),
+            model,
             segmenter: Segmenter::new(width, height)?,
             size: SizeGuard::new("segmentation", width, height),
         })
@@ -182,31 +208,30 @@ impl Stage for Segmentation {
     }
     fn process(&mut self, msg: &mut ResultMsg, input: &[u8], _: Option<&[u8]>, out: &mut [u8]) {
         let n = self.size.pixels();
-        let counts = self.detector.colour_counts_bytes();
-        if msg.found != 1 || !self.size.fits(msg, input.len().saturating_sub(counts), 1) {
+        if msg.found != 1 || !self.size.fits(msg, input.len().min(n), 1) {
             return;
         }
-        let (index, counts) = input.split_at(n);
+        let (index, rest) = input.split_at(n);
         let Some(index) = IndexView::new(self.size.width, self.size.height, index) else {
             return;
         };
-        if !self.detector.prepare_colours_from(index, counts) {
+        let search = cells_of(msg.search_cells);
+        let Some(counts) = rest
+            .get(..RegionCounts::published_len(self.layout, search))
+            .and_then(|bytes| RegionCounts::from_bytes(self.layout, search, bytes))
+        else {
             return;
-        }
+        };
         let det = Detection {
             window: rect(msg.window),
-            cells: CellRect {
-                x0: msg.cells[0] as u32,
-                y0: msg.cells[1] as u32,
-                x1: msg.cells[2] as u32,
-                y1: msg.cells[3] as u32,
-            },
+            cells: cells_of(msg.cells),
             score: msg.detection[0] as f32,
             threshold: msg.detection[1] as f32,
             scale: msg.detection[2] as f32,
             truncated: msg.detection[3] != 0.0,
+            window_cells: msg.window_cells.min(u64::from(u32::MAX)) as u32,
         };
-        if let Some(seg) = self.segmenter.segment(index, &self.detector, &det)
+        if let Some(seg) = self.segmenter.segment(index, &counts, &self.model, &det)
             && seg.mask.len() == n
         {
             let roi = seg.roi.clamp_to(self.size.width, self.size.height);

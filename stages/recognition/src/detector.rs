@@ -2,7 +2,8 @@
 
 use acch_core::{IndexView, NOT_OBJECT, Rect};
 
-use crate::model::{RecognitionError, RecognitionModel};
+use crate::counts::{ColourCounts, CountLayout, RegionCounts};
+use crate::model::{RecognitionError, RecognitionModel, RecognitionParams};
 
 /// A rectangle of cells, `[x0, x1) x [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -30,6 +31,15 @@ impl CellRect {
     pub fn is_empty(&self) -> bool {
         self.x1 <= self.x0 || self.y1 <= self.y0
     }
+    /// Grown by `by` cells on each side, cut to a `grid` (columns, rows).
+    pub fn expand(&self, by: u32, grid: (usize, usize)) -> CellRect {
+        CellRect {
+            x0: self.x0.saturating_sub(by),
+            y0: self.y0.saturating_sub(by),
+            x1: self.x1.saturating_add(by).min(grid.0 as u32),
+            y1: self.y1.saturating_add(by).min(grid.1 as u32),
+        }
+    }
 }
 
 /// The best window of a frame, when its score reaches the model's threshold.
@@ -49,6 +59,33 @@ pub struct Detection {
     /// Whether the window hangs over the frame border (the object may be
     /// partly outside the view).
     pub truncated: bool,
+    /// Side in cells of the scan's (square) window, before it was cut to
+    /// the frame.
+    pub window_cells: u32,
+}
+
+impl Detection {
+    /// Window side in cells: the scan's, and at least the cut window's.
+    fn side(&self) -> u32 {
+        self.window_cells
+            .max(self.cells.width())
+            .max(self.cells.height())
+    }
+
+    /// Cells segmentation's region may grow over: the window grown by
+    /// `max_growth` window sides on each side, cut to the `grid`.
+    pub fn search_cells(&self, params: &RecognitionParams, grid: (usize, usize)) -> CellRect {
+        let grow = (params.max_growth * self.side() as f32).ceil() as u32;
+        self.cells.expand(grow, grid)
+    }
+
+    /// The search area grown by one more window side: the ring between the
+    /// two is where segmentation samples the background's colours (the
+    /// object is not expected there). Every count segmentation reads lies
+    /// inside.
+    pub fn context_cells(&self, params: &RecognitionParams, grid: (usize, usize)) -> CellRect {
+        self.search_cells(params, grid).expand(self.side(), grid)
+    }
 }
 
 /// Window scores of the last scan, one per window position (row-major), for
@@ -105,9 +142,6 @@ pub struct Detector {
     window_cells: u32,
     best: f32,
     prepared: bool,
-    /// Whether every pair feature of `cell_counts` is zero (as after
-    /// [`Detector::prepare_colours_from`]), so it need not be cleared again.
-    pairs_zero: bool,
 }
 
 impl Detector {
@@ -179,7 +213,6 @@ impl Detector {
             window_cells: 0,
             best: 0.0,
             prepared: false,
-            pairs_zero: true,
         };
         det.resize(width, height);
         Ok(det)
@@ -195,7 +228,6 @@ impl Detector {
         self.cell_counts = vec![0; self.gx * self.gy * self.nf];
         self.integral = vec![0.0; (self.gx + 1) * (self.gy + 1) * self.nf];
         self.prepared = false;
-        self.pairs_zero = true;
     }
 
     /// The model.
@@ -231,40 +263,22 @@ impl Detector {
         &self.cell_counts[i..i + self.nf]
     }
 
-    /// Sums of every feature over a rectangle of cells of the last prepared
-    /// frame, into `out` (length of the cell stride). After
-    /// [`Detector::prepare_colours_from`] the colour features are summed
-    /// cell by cell (a region is a small part of the grid, and building the
-    /// integral of the whole grid cost more than the sums) and the pair
-    /// features are zero; both ways the sums are exact (integer counts
-    /// below 2^24 in f32).
-    pub fn sum_cells(&self, r: CellRect, out: &mut [f32]) {
-        let nf = self.nf;
-        if !self.prepared {
-            let k = self.colour_features();
-            out.iter_mut().take(nf).for_each(|o| *o = 0.0);
-            for cy in r.y0 as usize..r.y1 as usize {
-                for cx in r.x0 as usize..r.x1 as usize {
-                    let at = (cy * self.gx + cx) * nf;
-                    for (o, &c) in out.iter_mut().zip(&self.cell_counts[at..at + k]) {
-                        *o += c as f32;
-                    }
-                }
-            }
-            return;
-        }
-        let row = self.gx + 1;
-        let at = |x: u32, y: u32| (y as usize * row + x as usize) * nf;
-        let (a, b, c, d) = (
-            at(r.x0, r.y0),
-            at(r.x1, r.y0),
-            at(r.x0, r.y1),
-            at(r.x1, r.y1),
-        );
-        let ig = &self.integral;
-        for (f, o) in out.iter_mut().enumerate().take(nf) {
-            *o = ig[d + f] - ig[c + f] - ig[b + f] + ig[a + f];
-        }
+    /// The colour counts of the last prepared frame (every cell), as
+    /// segmentation reads them; `None` before a frame was prepared.
+    pub fn colour_counts(&self) -> Option<ColourCounts<'_>> {
+        self.prepared.then(|| {
+            ColourCounts::of_detector(
+                self.count_layout(),
+                &self.cell_counts,
+                &self.integral,
+                self.nf,
+            )
+        })
+    }
+
+    /// How this detector's colour counts are laid out (and published).
+    pub fn count_layout(&self) -> CountLayout {
+        CountLayout::new(&self.model, self.width, self.height)
     }
 
     /// Model count of each feature per object pixel ([`Detector::layout`] order).
@@ -364,105 +378,20 @@ impl Detector {
                 counts[not] = ((pw * ph) as u32 - owned) as u16;
             }
         }
-        self.build_integral(self.nf);
+        self.build_integral();
         self.prepared = true;
-        self.pairs_zero = false;
     }
 
-    /// Features per cell that segmentation reads: the C colours and "not
-    /// object" (the pairs only matter to the window scan).
-    fn colour_features(&self) -> usize {
-        self.model.colours() + 1
-    }
-
-    /// Bytes of the colour counts [`Detector::write_colour_counts`] writes.
-    pub fn colour_counts_bytes(&self) -> usize {
-        self.gx * self.gy * self.colour_features() * self.count_bytes()
-    }
-
-    /// Bytes per published count: one when a cell holds at most 255 pixels
-    /// (the default 8x8 cells; half the bytes to write and read), else two.
-    fn count_bytes(&self) -> usize {
-        if self.cell * self.cell <= u8::MAX as usize {
-            1
-        } else {
-            2
-        }
-    }
-
-    /// Writes every cell's colour counts of the last prepared frame (cells
-    /// row-major, C + 1 counts each: one byte each when a cell holds at
-    /// most 255 pixels, else native-endian `u16`s) into `out`, which must
-    /// be [`Detector::colour_counts_bytes`] long: what another process
-    /// needs to [`Detector::prepare_colours_from`] the same frame.
-    pub fn write_colour_counts(&self, out: &mut [u8]) {
-        let (nf, k, b) = (self.nf, self.colour_features(), self.count_bytes());
-        for (cell, dst) in self
-            .cell_counts
-            .chunks_exact(nf)
-            .zip(out.chunks_exact_mut(k * b))
-        {
-            if b == 1 {
-                // A count never exceeds the cell's pixels (<= 255 here).
-                for (d, &c) in dst.iter_mut().zip(&cell[..k]) {
-                    *d = c as u8;
-                }
-            } else {
-                for (d, c) in dst.chunks_exact_mut(2).zip(&cell[..k]) {
-                    d.copy_from_slice(&c.to_ne_bytes());
-                }
-            }
-        }
-    }
-
-    /// Prepares the colour features of a frame (per-cell counts: what
-    /// segmentation reads; no integral) from the colour counts another
-    /// detector with the same model wrote, skipping the pass over the
-    /// pixels. Pair features stay zero and [`Detector::scan`] stays
-    /// unavailable until the next [`Detector::prepare`]. `image` is the
-    /// same frame (for its size). Returns false, leaving nothing prepared,
-    /// when the sizes do not match.
-    pub fn prepare_colours_from<'a>(
-        &mut self,
-        image: impl Into<IndexView<'a>>,
-        counts: &[u8],
-    ) -> bool {
-        let image = image.into();
-        self.prepared = false;
-        if image.width != self.width
-            || image.height != self.height
-            || counts.len() != self.colour_counts_bytes()
-        {
-            return false;
-        }
-        let (nf, k) = (self.nf, self.colour_features());
-        let b = self.count_bytes();
-        for (cell, src) in self
-            .cell_counts
-            .chunks_exact_mut(nf)
-            .zip(counts.chunks_exact(k * b))
-        {
-            if b == 1 {
-                for (c, &s) in cell[..k].iter_mut().zip(src) {
-                    *c = u16::from(s);
-                }
-            } else {
-                for (c, s) in cell[..k].iter_mut().zip(src.chunks_exact(2)) {
-                    *c = u16::from_ne_bytes([s[0], s[1]]);
-                }
-            }
-            if !self.pairs_zero {
-                cell[k..].fill(0);
-            }
-        }
-        self.pairs_zero = true;
-        true
+    /// What segmentation reads of the last prepared frame for `detection`
+    /// (found on it): see [`RegionCounts`]. `None` before a frame was
+    /// prepared.
+    pub fn region_counts(&self, detection: &Detection) -> Option<RegionCounts<'_>> {
+        RegionCounts::around(self.colour_counts()?, detection, &self.model)
     }
 
     /// Integral over the cell grid: I(x, y) = sum of cells left of x and
     /// above y.
-    /// Over the first `features` features only (the rest stay zero).
-    fn build_integral(&mut self, features: usize) {
+    fn build_integral(&mut self) {
         let (gx, gy, nf) = (self.gx, self.gy, self.nf);
         let row = gx + 1;
         self.integral[..row * nf].fill(0.0);
@@ -473,13 +402,13 @@ impl Detector {
             self.integral[base..base + nf].fill(0.0);
             for cx in 0..gx {
                 let at = (cy * gx + cx) * nf;
-                let counts = &self.cell_counts[at..at + features];
+                let counts = &self.cell_counts[at..at + nf];
                 for (r, &c) in run.iter_mut().zip(counts) {
                     *r += c as f32;
                 }
                 let (above, here) = self.integral.split_at_mut(base);
-                let up = &above[(cy * row + cx + 1) * nf..][..features];
-                let out = &mut here[(cx + 1) * nf..][..features];
+                let up = &above[(cy * row + cx + 1) * nf..][..nf];
+                let out = &mut here[(cx + 1) * nf..][..nf];
                 for ((o, &u), &r) in out.iter_mut().zip(up).zip(run.iter()) {
                     *o = u + r;
                 }
@@ -596,6 +525,7 @@ impl Detector {
             threshold: self.model.threshold,
             scale,
             truncated: best.2,
+            window_cells: wc as u32,
         })
     }
 

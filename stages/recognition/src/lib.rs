@@ -46,9 +46,11 @@
 
 #![warn(missing_docs)]
 
+mod counts;
 mod detector;
 mod model;
 
+pub use counts::{ColourCounts, CountLayout, MAX_FEATURES, RegionCounts};
 pub use detector::{CellRect, Detection, Detector, HeatMap};
 pub use model::{MODEL_VERSION, RecognitionError, RecognitionModel, RecognitionParams, SECTION};
 
@@ -160,79 +162,122 @@ mod tests {
         assert_eq!(best, d.score);
     }
 
+    /// Every cell count of `r` and the sums over every rectangle of `rects`
+    /// read the same from `a` and `b`.
+    fn assert_same_counts(a: &ColourCounts, b: &ColourCounts, r: CellRect, rects: &[CellRect]) {
+        let c = a.layout().colours;
+        // Distinct weights so that a count read from the wrong place shows.
+        let weights: Vec<f32> = (0..c).map(|i| 1.0 + i as f32 * 1.5).collect();
+        for cy in r.y0..r.y1 {
+            for cx in r.x0..r.x1 {
+                assert_eq!(a.weighted(cx, cy, &weights), b.weighted(cx, cy, &weights));
+            }
+        }
+        let (mut x, mut y) = (vec![0.0; c + 1], vec![0.0; c + 1]);
+        for &q in rects {
+            assert!(a.sums(q, &mut x) && b.sums(q, &mut y), "{q:?}");
+            assert_eq!(x, y);
+        }
+    }
+
     #[test]
-    fn colour_counts_from_another_process_prepare_what_segmentation_reads() {
+    fn colour_counts_published_around_a_detection_read_the_same_in_place() {
         let (rgb, _) = frame(Some((60, 40)), noisy);
         let image = quantised(&rgb);
-        let mut first = Detector::new(model(), W, H).unwrap();
-        let found = first.detect(&image, Some(1.0)).expect("found");
-        let mut bytes = vec![0u8; first.colour_counts_bytes()];
-        first.write_colour_counts(&mut bytes);
-        let mut second = Detector::new(model(), W, H).unwrap();
-        assert!(second.prepare_colours_from(&image, &bytes));
-        let (c, _, nf) = first.layout();
-        let (gx, gy) = first.grid();
-        // 8x8 cells: one byte per count.
-        assert_eq!(bytes.len(), gx * gy * (c + 1));
-        for (cx, cy) in [(0, 0), (gx / 2, gy / 2), (gx - 1, gy - 1)] {
-            assert_eq!(
-                first.cell_counts(cx, cy)[..=c],
-                second.cell_counts(cx, cy)[..=c]
-            );
+        let mut det = Detector::new(model(), W, H).unwrap();
+        assert!(det.colour_counts().is_none(), "nothing prepared yet");
+        let found = det.detect(&image, Some(1.0)).expect("found");
+        let layout = det.count_layout();
+        let params = det.model().params;
+        let grid = layout.grid();
+        let search = found.search_cells(&params, grid);
+        let ctx = found.context_cells(&params, grid);
+        let own = det.colour_counts().expect("prepared");
+        let whole = layout.all_cells();
+        assert!(own.sums(whole, &mut [0.0; 16]));
+        // The context (on this small frame, most of the grid) and the
+        // search area inside it.
+        for published in [ctx, search] {
+            let mut bytes = vec![0u8; layout.bytes(published)];
+            // 8x8 cells: one byte per count, C + 1 a cell.
+            let cells = (published.width() * published.height()) as usize;
+            assert_eq!(bytes.len(), cells * (layout.colours + 1));
+            assert!(own.write(published, &mut bytes));
+            let read = ColourCounts::from_bytes(layout, published, &bytes).expect("read");
+            assert_same_counts(&own, &read, published, &[found.cells, published]);
+            // Only the published cells can be read.
+            assert_eq!(read.sums(whole, &mut [0.0; 16]), published == whole);
         }
-        let (mut a, mut b) = (vec![0.0; nf], vec![0.0; nf]);
-        for r in [
-            found.cells,
-            CellRect {
-                x0: 0,
-                y0: 0,
-                x1: gx as u32,
-                y1: gy as u32,
-            },
-        ] {
-            first.sum_cells(r, &mut a);
-            second.sum_cells(r, &mut b);
-            assert_eq!(a[..=c], b[..=c]);
+        assert!(search.width() < grid.0 as u32, "{search:?}");
+        let mut bytes = vec![0u8; layout.bytes(ctx)];
+        assert!(own.write(ctx, &mut bytes));
+        // Bytes of another length, or a rectangle off the grid, are refused.
+        assert!(ColourCounts::from_bytes(layout, ctx, &bytes[1..]).is_none());
+        let off = CellRect {
+            x1: grid.0 as u32 + 1,
+            ..ctx
+        };
+        assert!(ColourCounts::from_bytes(layout, off, &bytes).is_none());
+        assert!(!own.write(off, &mut bytes));
+    }
+
+    #[test]
+    fn region_counts_publish_the_search_area_and_the_ring_sums() {
+        let (rgb, _) = frame(Some((60, 40)), noisy);
+        let image = quantised(&rgb);
+        let mut det = Detector::new(model(), W, H).unwrap();
+        let found = det.detect(&image, Some(1.0)).expect("found");
+        let layout = det.count_layout();
+        let region = det.region_counts(&found).expect("prepared");
+        let search = region.search();
+        assert_eq!(
+            search,
+            found.search_cells(&det.model().params, layout.grid())
+        );
+        let mut bytes = vec![0u8; RegionCounts::published_len(layout, search)];
+        assert!(region.publish(&mut bytes));
+        assert!(!region.publish(&mut bytes[1..]));
+        let read = RegionCounts::from_bytes(layout, search, &bytes).expect("read");
+        assert_eq!(read.search(), search);
+        assert_eq!(read.ring(), region.ring());
+        assert_eq!(read.ring().len(), layout.colours + 1);
+        // The ring holds the background's pixels: some counted, all sums whole.
+        assert!(read.ring().iter().sum::<f32>() > 0.0);
+        assert!(read.ring().iter().all(|&v| v >= 0.0 && v.fract() == 0.0));
+        assert_same_counts(region.cells(), read.cells(), search, &[found.cells, search]);
+        // Published counts cover the search area only, not the context: no
+        // ring can be summed from them again.
+        let ctx = found.context_cells(&det.model().params, layout.grid());
+        if ctx != search {
+            assert!(RegionCounts::around(*read.cells(), &found, det.model()).is_none());
         }
-        // Only colours were prepared: no window scan on them.
-        assert_eq!(second.scan(1.0), None);
-        // After a full preparation (pairs counted) the pairs are cleared.
-        second.detect(&image, Some(1.0)).expect("found");
-        assert!(second.prepare_colours_from(&image, &bytes));
-        for (cx, cy) in [(0, 0), (gx / 2, gy / 2), (gx - 1, gy - 1)] {
-            assert!(second.cell_counts(cx, cy)[c + 1..].iter().all(|&n| n == 0));
-        }
-        second.sum_cells(found.cells, &mut b);
-        first.sum_cells(found.cells, &mut a);
-        assert_eq!(a[..=c], b[..=c]);
-        assert!(b[c + 1..].iter().all(|&v| v == 0.0));
-        // Counts of another size prepare nothing.
-        assert!(!second.prepare_colours_from(&image, &bytes[2..]));
+        assert!(RegionCounts::from_bytes(layout, search, &bytes[1..]).is_none());
     }
 
     #[test]
     fn colour_counts_of_cells_over_255_pixels_travel_as_u16() {
         let (rgb, _) = frame(Some((60, 40)), |_, _| GREY);
         let image = quantised(&rgb);
-        let mut first = Detector::new(model_with_cells(16), W, H).unwrap();
-        first.prepare(&image);
-        let (c, _, _) = first.layout();
-        let (gx, gy) = first.grid();
-        let mut bytes = vec![0u8; first.colour_counts_bytes()];
-        assert_eq!(bytes.len(), gx * gy * (c + 1) * 2);
-        first.write_colour_counts(&mut bytes);
-        let mut second = Detector::new(model_with_cells(16), W, H).unwrap();
-        assert!(second.prepare_colours_from(&image, &bytes));
-        let mut saw_over_255 = false;
-        for cy in 0..gy {
-            for cx in 0..gx {
-                let counts = &first.cell_counts(cx, cy)[..=c];
-                saw_over_255 |= counts.iter().any(|&n| n > 255);
-                assert_eq!(counts, &second.cell_counts(cx, cy)[..=c]);
-            }
-        }
+        let mut det = Detector::new(model_with_cells(16), W, H).unwrap();
+        det.prepare(&image);
+        let layout = det.count_layout();
+        let (gx, gy) = layout.grid();
+        let whole = layout.all_cells();
+        let own = det.colour_counts().expect("prepared");
+        let mut bytes = vec![0u8; layout.bytes(whole)];
+        assert_eq!(bytes.len(), gx * gy * (layout.colours + 1) * 2);
+        assert!(own.write(whole, &mut bytes));
+        let published = ColourCounts::from_bytes(layout, whole, &bytes).expect("read");
+        let corner = CellRect {
+            x0: 1,
+            y0: 1,
+            x1: 3,
+            y1: 2,
+        };
+        assert_same_counts(&own, &published, whole, &[whole, corner]);
         // A 16x16 cell of background alone counts 256 "not object" pixels.
-        assert!(saw_over_255);
+        let c = layout.colours;
+        assert!((0..gy).any(|cy| (0..gx).any(|cx| det.cell_counts(cx, cy)[c] > 255)));
     }
 
     #[test]

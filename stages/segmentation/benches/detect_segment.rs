@@ -95,14 +95,16 @@ fn main() {
         group.bench_function("segment", |b| {
             b.iter(|| {
                 segmenter
-                    .segment(&index, &detector, black_box(&detection))
+                    .segment_detected(&index, &detector, black_box(&detection))
                     .map(|s| s.area)
             })
         });
         group.bench_function("detect+segment", |b| {
             b.iter(|| {
                 let d = detector.detect(black_box(&index), Some(1.0))?;
-                segmenter.segment(&index, &detector, &d).map(|s| s.area)
+                segmenter
+                    .segment_detected(&index, &detector, &d)
+                    .map(|s| s.area)
             })
         });
         group.finish();

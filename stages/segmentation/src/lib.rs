@@ -34,7 +34,7 @@
 #![warn(missing_docs)]
 
 use acch_core::{IndexView, Rect};
-use acch_recognition::{CellRect, Detection, Detector};
+use acch_recognition::{CellRect, Detection, Detector, RecognitionModel, RegionCounts};
 
 /// Why a segmenter could not be used.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -73,8 +73,6 @@ pub struct Segmenter {
     last_roi: Rect,
     /// Weight per palette index, 0..=255 (the likelihood in 1/255).
     weight: [u8; 256],
-    sums: Vec<f32>,
-    inner: Vec<f32>,
     cell_score: Vec<f32>,
     /// Per cell: 0 outside, 1 candidate (inside the search area), 2 region,
     /// 3 next to the region.
@@ -97,8 +95,6 @@ impl Segmenter {
             mask: Vec::new(),
             last_roi: Rect::default(),
             weight: [0; 256],
-            sums: Vec::new(),
-            inner: Vec::new(),
             cell_score: Vec::new(),
             region: Vec::new(),
             queue: Vec::new(),
@@ -145,64 +141,66 @@ impl Segmenter {
         &self.region
     }
 
-    /// Grows `detection` (from `detector`'s last frame, `image`) into a pixel
-    /// mask. Returns `None` when no cell of the window resembles the object,
-    /// or when `detector` last prepared a frame of another size.
-    pub fn segment<'a>(
+    /// [`Segmenter::segment`] with the counts of `detector`, which found
+    /// `detection` on `image` (`None` when it prepared no frame).
+    pub fn segment_detected<'a>(
         &mut self,
         image: impl Into<IndexView<'a>>,
         detector: &Detector,
+        detection: &Detection,
+    ) -> Option<Segment<'_>> {
+        let counts = detector.region_counts(detection)?;
+        self.segment(image, &counts, detector.model(), detection)
+    }
+
+    /// Grows `detection` (of `model`, on frame `image`) into a pixel mask,
+    /// reading the frame's colour counts around it from `counts` (from the
+    /// detector that found it, or as recognition published them). Returns
+    /// `None` when no cell of the window resembles the object, or when the
+    /// counts are of another frame size or another search area.
+    pub fn segment<'a>(
+        &mut self,
+        image: impl Into<IndexView<'a>>,
+        counts: &RegionCounts,
+        model: &RecognitionModel,
         detection: &Detection,
     ) -> Option<Segment<'_>> {
         let image = image.into();
         if image.width != self.width || image.height != self.height {
             self.resize(image.width, image.height);
         }
-        let (gx, gy) = detector.grid();
-        let c = detection.cells;
-        if detector.frame_size() != (image.width, image.height)
-            || c.is_empty()
-            || c.x1 as usize > gx
-            || c.y1 as usize > gy
+        self.clear();
+        let cells = counts.cells();
+        let layout = cells.layout();
+        let (gx, gy) = layout.grid();
+        let p = model.params;
+        let win = detection.cells;
+        let search = detection.search_cells(&p, (gx, gy));
+        if (layout.width, layout.height) != (image.width, image.height)
+            || layout.colours != model.colours()
+            || !layout.contains(win)
+            || counts.search() != search
+            || !cells.covers(search)
         {
-            self.clear();
             return None;
         }
-        self.clear();
         let w = self.width as usize;
-        let model = detector.model();
-        let p = model.params;
-        let cell = detector.cell_px() as usize;
-        let (c, _k, nf) = detector.layout();
-        let win = detection.cells;
-        let wc = detector.window_cells().max(win.width()).max(win.height());
-
-        let grow = (p.max_growth * wc as f32).ceil() as u32;
-        let search = expand(win, grow, gx, gy);
+        let cell = layout.cell_px as usize;
+        let c = layout.colours;
         // Colour weights: object frequencies from the model, background
         // frequencies from a ring around the search area (one window side
         // wide), where the object is not expected.
-        let ctx = expand(search, wc, gx, gy);
-        if self.sums.len() != nf {
-            self.sums.resize(nf, 0.0);
-            self.inner.resize(nf, 0.0);
-        }
-        detector.sum_cells(ctx, &mut self.sums);
-        detector.sum_cells(search, &mut self.inner);
-        let px = |r: CellRect| {
-            ((r.x1 as usize * cell).min(w) - r.x0 as usize * cell) as f32
-                * ((r.y1 as usize * cell).min(self.height as usize) - r.y0 as usize * cell) as f32
-        };
-        let ring_px = px(ctx) - px(search);
+        let ctx = detection.context_cells(&p, (gx, gy));
+        let ring_px = (layout.pixels(ctx) - layout.pixels(search)) as f32;
+        let ring = counts.ring();
         self.weight = [0; 256];
-        let freq = detector.model_freq();
-        for (k, &f) in freq[..c].iter().enumerate() {
+        for (k, &f) in model.colour_freq[..c].iter().enumerate() {
             if f <= 0.0 {
                 continue;
             }
             // No ring (the search area fills the frame): no background evidence.
             let b = if ring_px > 0.0 {
-                (self.sums[k] - self.inner[k]).max(0.0) / ring_px
+                ring[k].max(0.0) / ring_px
             } else {
                 0.0
             };
@@ -223,12 +221,7 @@ impl Segmenter {
             let ph = ((cy as usize + 1) * cell).min(self.height as usize) - cy as usize * cell;
             for cx in search.x0..search.x1 {
                 let pw = ((cx as usize + 1) * cell).min(w) - cx as usize * cell;
-                let counts = detector.cell_counts(cx as usize, cy as usize);
-                let s: f32 = counts[..c]
-                    .iter()
-                    .zip(&cw[..c])
-                    .map(|(&n, &wt)| n as f32 * wt)
-                    .sum();
+                let s = cells.weighted(cx, cy, &cw);
                 let i = cy as usize * gx + cx as usize;
                 self.cell_score[i] = s / (pw * ph) as f32;
                 self.region[i] = 1;
@@ -287,7 +280,7 @@ impl Segmenter {
         self.region_box = rb;
 
         // Pixel stage on the region's box plus one cell.
-        let roi_c = expand(rb, 1, gx, gy);
+        let roi_c = rb.expand(1, (gx, gy));
         let x0 = roi_c.x0 as usize * cell;
         let y0 = roi_c.y0 as usize * cell;
         let x1 = (roi_c.x1 as usize * cell).min(w);
@@ -461,16 +454,6 @@ impl Segmenter {
     }
 }
 
-/// `r` grown by `by` cells on each side, cut to the grid.
-fn expand(r: CellRect, by: u32, gx: usize, gy: usize) -> CellRect {
-    CellRect {
-        x0: r.x0.saturating_sub(by),
-        y0: r.y0.saturating_sub(by),
-        x1: (r.x1 + by).min(gx as u32),
-        y1: (r.y1 + by).min(gy as u32),
-    }
-}
-
 /// Whether one of the 8 neighbours of cell (cx, cy) is in the region (2).
 #[inline]
 fn near_region(region: &[u8], gx: usize, gy: usize, cx: usize, cy: usize) -> bool {
@@ -559,7 +542,7 @@ mod tests {
     use super::*;
     use acch_core::{ColourSpace, Palette};
     use acch_pose::train::LabelledView;
-    use acch_recognition::{RecognitionModel, RecognitionParams};
+    use acch_recognition::RecognitionParams;
 
     const COLOURS: [[u8; 3]; 4] = [[220, 30, 30], [30, 200, 40], [40, 40, 220], [230, 220, 40]];
     const GREY: [u8; 3] = [128, 128, 128];
@@ -645,7 +628,7 @@ mod tests {
         let (rgb, truth) = frame(70, 40, true, sprinkled);
         let img = palette().quantise(&rgb, W, H);
         let d = det.detect(&img, Some(1.0)).expect("found");
-        let s = seg.segment(&img, &det, &d).expect("segmented");
+        let s = seg.segment_detected(&img, &det, &d).expect("segmented");
         assert!(iou(s.mask, &truth) > 0.97, "IoU {}", iou(s.mask, &truth));
         assert_eq!(s.area, s.mask.iter().filter(|&&m| m == 255).count() as u64);
         assert!(s.mask.iter().all(|&m| m == 0 || m == 255));
@@ -667,12 +650,46 @@ mod tests {
             let (rgb, truth) = frame(x0, y0, false, sprinkled);
             let img = palette().quantise(&rgb, W, H);
             let d = det.detect(&img, Some(1.0)).expect("found");
-            let s = seg.segment(&img, &det, &d).expect("segmented");
+            let s = seg.segment_detected(&img, &det, &d).expect("segmented");
             assert!(
                 iou(s.mask, &truth) > 0.97,
                 "at ({x0}, {y0}): IoU {}",
                 iou(s.mask, &truth)
             );
+        }
+    }
+
+    #[test]
+    fn published_region_counts_segment_exactly_as_the_detectors_own() {
+        let mut det = detector();
+        let (mut a, mut b) = (Segmenter::new(W, H).unwrap(), Segmenter::new(W, H).unwrap());
+        // Near the border too: the search area and the ring are cut to the grid.
+        for (x0, y0) in [(70, 40), (2, 3), (110, 70)] {
+            let (rgb, _) = frame(x0, y0, true, sprinkled);
+            let img = palette().quantise(&rgb, W, H);
+            let d = det.detect(&img, Some(1.0)).expect("found");
+            let layout = det.count_layout();
+            let own = det.region_counts(&d).unwrap();
+            let search = own.search();
+            let mut bytes = vec![0u8; RegionCounts::published_len(layout, search)];
+            assert!(own.publish(&mut bytes));
+            let published = RegionCounts::from_bytes(layout, search, &bytes).unwrap();
+            let sa = a.segment(&img, &own, det.model(), &d).expect("segmented");
+            let sb = b
+                .segment(&img, &published, det.model(), &d)
+                .expect("segmented");
+            assert_eq!((sa.roi, sa.area, sa.cells), (sb.roi, sb.area, sb.cells));
+            assert_eq!(sa.mask, sb.mask);
+            // Counts of another search area segment nothing.
+            if search.width() > 1 {
+                let short = CellRect {
+                    x1: search.x1 - 1,
+                    ..search
+                };
+                let bytes = vec![0u8; RegionCounts::published_len(layout, short)];
+                let part = RegionCounts::from_bytes(layout, short, &bytes).unwrap();
+                assert!(b.segment(&img, &part, det.model(), &d).is_none());
+            }
         }
     }
 

@@ -85,7 +85,7 @@ fn detect_and_segment_do_not_allocate_once_warm() {
         let mut found = 0;
         for f in &frames {
             if let Some(d) = detector.detect(f, Some(1.0)) {
-                found += segmenter.segment(f, detector, &d).is_some() as usize;
+                found += segmenter.segment_detected(f, detector, &d).is_some() as usize;
             }
         }
         found
