@@ -121,9 +121,7 @@ impl Stage for Recognition {
         let Some(region) = self.detector.region_counts(&d) else {
             return;
         };
-        let search = region.search();
-        let len = RegionCounts::published_len(self.detector.count_layout(), search);
-        if !region.publish(&mut counts_out[..len]) {
+        if !region.publish(counts_out) {
             return;
         }
         msg.found = 1;
@@ -136,7 +134,7 @@ impl Stage for Recognition {
             d.truncated as u64 as f64,
         ];
         msg.window_cells = u64::from(d.window_cells);
-        msg.search_cells = cells_msg(search);
+        msg.search_cells = cells_msg(region.search());
     }
     fn skipped(&self) -> u64 {
         self.size.skipped

@@ -1,8 +1,7 @@
 //! Per-cell colour counts over a rectangle of the cell grid, and what
 //! segmentation reads of a frame for one detection ([`RegionCounts`]):
 //! borrowed from the [`crate::Detector`] that counted them, or read in place
-//! from the bytes another process published
-//! ([`crate::Detector::write_region_counts`]).
+//! from the bytes another process published ([`RegionCounts::publish`]).
 
 use crate::detector::{CellRect, Detection};
 use crate::model::RecognitionModel;
@@ -367,15 +366,15 @@ impl<'a> RegionCounts<'a> {
         layout.features() * RING_SUM_BYTES + layout.bytes(search)
     }
 
-    /// Writes these counts into `out`, which must be
-    /// [`RegionCounts::published_len`] of the search area long: what
+    /// Writes these counts into the start of `out`
+    /// ([`RegionCounts::published_len`] of the search area): what
     /// [`RegionCounts::from_bytes`] reads in another process. Returns
-    /// false, writing nothing, when `out` has another length.
+    /// false, writing nothing, when `out` is shorter.
     pub fn publish(&self, out: &mut [u8]) -> bool {
         let layout = self.cells.layout;
-        if out.len() != Self::published_len(layout, self.search) {
+        let Some(out) = out.get_mut(..Self::published_len(layout, self.search)) else {
             return false;
-        }
+        };
         let (ring, cells) = out.split_at_mut(layout.features() * RING_SUM_BYTES);
         for (d, &r) in ring.chunks_exact_mut(RING_SUM_BYTES).zip(&self.ring) {
             d.copy_from_slice(&(r as u32).to_ne_bytes());

@@ -240,24 +240,8 @@ impl Detector {
         (self.width, self.height)
     }
 
-    /// Cell grid size (columns, rows).
-    pub fn grid(&self) -> (usize, usize) {
-        (self.gx, self.gy)
-    }
-
-    /// Cell side in pixels.
-    pub fn cell_px(&self) -> u32 {
-        self.cell as u32
-    }
-
-    /// Feature layout: (colours C, pairs K, stride of a cell's counts). Cell
-    /// counts hold colours at 0..C, "not object" at C and pairs at C+1..C+1+K.
-    pub fn layout(&self) -> (usize, usize, usize) {
-        (self.model.colours(), self.model.pairs.len(), self.nf)
-    }
-
-    /// Counts of the last prepared frame for cell (cx, cy), [`Detector::layout`]
-    /// order.
+    /// Counts of the last prepared frame for cell (cx, cy): the C colours,
+    /// "not object" at C, the K pairs from C + 1, zero padding.
     pub fn cell_counts(&self, cx: usize, cy: usize) -> &[u16] {
         let i = (cy * self.gx + cx) * self.nf;
         &self.cell_counts[i..i + self.nf]
@@ -281,19 +265,9 @@ impl Detector {
         CountLayout::new(&self.model, self.width, self.height)
     }
 
-    /// Model count of each feature per object pixel ([`Detector::layout`] order).
-    pub fn model_freq(&self) -> &[f32] {
-        &self.freq
-    }
-
     /// Best window score of the last scan (also when below the threshold).
     pub fn best_score(&self) -> f32 {
         self.best
-    }
-
-    /// Window size in cells of the last scan.
-    pub fn window_cells(&self) -> u32 {
-        self.window_cells
     }
 
     /// Window scores of the last scan.
