@@ -49,7 +49,24 @@ fn bench_writes_the_report_keys() {
     for mode in ["shm", "in-process", "copy"] {
         assert!(config["modes"][mode]["e2e_p99_ms"].is_number(), "{mode}");
         assert!(config["modes"][mode]["processes"].is_array(), "{mode}");
+        // The default warm-up: the first 5 frames of the one run, apart.
+        assert_eq!(config["modes"][mode]["warmup"]["frames"], 5, "{mode}");
+        assert!(config["modes"][mode]["warmup"]["e2e_max_ms"].is_number());
     }
     assert!(std::fs::metadata(&png).unwrap().len() > 0);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_warmup_as_long_as_the_run_is_refused_before_anything_runs() {
+    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args(["bench", "--frames", "5", "--warmup", "5"])
+        .output()
+        .expect("run acch bench");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--warmup 5") && err.contains("--frames 5"),
+        "{err}"
+    );
 }

@@ -29,6 +29,13 @@ pub struct BenchArgs {
     /// Frames per run.
     #[arg(long, default_value_t = 300)]
     frames: u64,
+    /// Frames at the start of every run, in every mode, left out of the
+    /// percentiles: the first frame through fresh processes maps shared
+    /// memory and faults in code and data (its hops take 100-230 µs against
+    /// 20-45 µs after), and with `--repeat` those few frames would set the
+    /// p99. They are reported on their own (`warmup`).
+    #[arg(long, default_value_t = 5)]
+    warmup: u64,
     /// Frame rates, comma-separated; 0 = free-running.
     #[arg(long, value_delimiter = ',', default_value = "15,30,60,0")]
     fps: Vec<f64>,
@@ -50,6 +57,11 @@ pub struct BenchArgs {
     /// `shm-rt`, `acch run --rt-priority`); needs CAP_SYS_NICE.
     #[arg(long, value_name = "PRIORITY")]
     rt_priority: Option<u8>,
+    /// Hold the CPUs' wake-up latency at this many µs in every mode,
+    /// baselines included (`acch run --cpu-latency-us`; 0: idle CPUs poll
+    /// instead of halting). Needs root.
+    #[arg(long, value_name = "US")]
+    cpu_latency_us: Option<u32>,
     /// CPUs of the processing stages in every mode (`acch run
     /// --stage-cpus`): auto, none or a list like 1.
     #[arg(long, value_name = "CPUS", default_value = "auto")]
@@ -93,6 +105,10 @@ struct RunResult {
     e2e: Vec<u64>,
     hops: Vec<(String, Vec<u64>)>,
     process: Vec<(String, Vec<u64>)>,
+    /// End-to-end latency of the warm-up frames, left out of `e2e`.
+    warmup_e2e: Vec<u64>,
+    /// Every hop of the warm-up frames, all stages.
+    warmup_hops: Vec<u64>,
 }
 
 impl RunResult {
@@ -108,6 +124,8 @@ impl RunResult {
         let mut all = runs.remove(0);
         for r in runs {
             all.e2e.extend(r.e2e);
+            all.warmup_e2e.extend(r.warmup_e2e);
+            all.warmup_hops.extend(r.warmup_hops);
             for (into, from) in [(&mut all.hops, r.hops), (&mut all.process, r.process)] {
                 for (name, xs) in from {
                     match into.iter_mut().find(|(n, _)| *n == name) {
@@ -155,6 +173,12 @@ fn run_once(
         .args(["--resolution", &format!("{w}x{h}")])
         .args(["--seed", &args.seed.to_string()])
         .args(["--stage-cpus", &args.stage_cpus])
+        .args(
+            args.cpu_latency_us
+                .map(|us| ["--cpu-latency-us".to_string(), us.to_string()])
+                .iter()
+                .flatten(),
+        )
         .arg("--samples")
         .arg("--json")
         .arg(&out);
@@ -195,21 +219,36 @@ fn run_once(
         .as_object_mut()
         .and_then(|o| o.remove("samples"))
         .ok_or_else(|| anyhow!("{mode}: the summary has no samples"))?;
-    let e2e = samples["e2e_ns"]
+    let mut e2e: Vec<u64> = samples["e2e_ns"]
         .as_array()
         .map(|a| a.iter().filter_map(Value::as_u64).collect())
         .unwrap_or_default();
+    let mut hops = series(&samples["hop_ns"]);
+    let mut process = series(&samples["process_ns"]);
+    // Samples come in frame order: the first `warmup` of each series are
+    // the run's first frames.
+    let skip = |v: &mut Vec<u64>| {
+        v.drain(..(args.warmup as usize).min(v.len()))
+            .collect::<Vec<_>>()
+    };
+    let warmup_e2e = skip(&mut e2e);
+    let warmup_hops = hops.iter_mut().flat_map(|(_, v)| skip(v)).collect();
+    for (_, v) in &mut process {
+        skip(v);
+    }
     Ok(RunResult {
         mode,
         e2e,
-        hops: series(&samples["hop_ns"]),
-        process: series(&samples["process_ns"]),
+        hops,
+        process,
         summary,
+        warmup_e2e,
+        warmup_hops,
     })
 }
 
 /// One mode's figures.
-fn figures(r: &RunResult, frames: u64) -> Value {
+fn figures(r: &RunResult, frames: u64, warmup: u64) -> Value {
     let hops: serde_json::Map<String, Value> = r
         .hops
         .iter()
@@ -244,7 +283,10 @@ fn figures(r: &RunResult, frames: u64) -> Value {
         "compute": compute,
         "throughput_fps": s["fps_achieved"],
         "results": results,
-        "dropped": frames.saturating_sub(results),
+        "dropped": frames.saturating_sub(results + r.warmup_e2e.len() as u64),
+        "warmup": {"frames": r.warmup_e2e.len(), "per_run": warmup,
+                   "e2e_max_ms": q_ms(&r.warmup_e2e, 1.0),
+                   "hop_max_us": q_ms(&r.warmup_hops, 1.0) * 1e3},
         "processes": s["processes"],
         "placement": s.get("placement"),
         "e2e_p50_ms_per_run": s.get("e2e_p50_ms_per_run"),
@@ -305,6 +347,26 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.fps.iter().any(|f| !(f.is_finite() && *f >= 0.0)) {
         bail!("--fps: every rate must be a number >= 0");
     }
+    if args.warmup >= args.frames {
+        bail!(
+            "--warmup {} leaves nothing to measure of --frames {}",
+            args.warmup,
+            args.frames
+        );
+    }
+    // Held between the runs as well, so every mode meets the same machine;
+    // refused here, before anything runs, when it cannot be held.
+    let _cpu_latency = args
+        .cpu_latency_us
+        .map(|us| {
+            acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
+                format!(
+                    "--cpu-latency-us {us}: writing {} needs root",
+                    acch_ipc::sched::CpuLatencyRequest::PATH
+                )
+            })
+        })
+        .transpose()?;
     let tmp = std::env::temp_dir().join(format!("acch-bench-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
     let mut configs = Vec::new();
@@ -324,7 +386,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
             }
             let runs: Vec<RunResult> = by_mode.into_iter().map(RunResult::pooled).collect();
             let frames = args.frames * u64::from(args.repeat);
-            let f: Vec<Value> = runs.iter().map(|r| figures(r, frames)).collect();
+            let f: Vec<Value> = runs
+                .iter()
+                .map(|r| figures(r, frames, args.warmup))
+                .collect();
             let (shm, inproc, copy) = (&f[0], &f[1], &f[2]);
             let rt = f.get(3);
             let ratio = |a: &Value, b: &Value, k: &str| {
@@ -384,6 +449,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut report = json!({
         "machine": machine(),
         "command": std::env::args().collect::<Vec<_>>().join(" "),
+        "cpu_latency_us": args.cpu_latency_us,
+        "warmup_frames_per_run": args.warmup,
         "headline": format!("{} at {} fps", head["resolution"].as_str().unwrap_or(""), head["fps"]),
         "targets": {"hop_p99_us": 50.0, "e2e_p99_ms": 15.0, "overhead_vs_inprocess": 0.10,
                     "fps_without_drops": 60.0},

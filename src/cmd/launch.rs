@@ -204,6 +204,8 @@ struct Summary {
     stage_counters: Vec<serde_json::Value>,
     /// Where the processes ran (`stage_cpus`); null when not placed.
     placement: Option<acch_ipc::sched::Placement>,
+    /// The CPU latency request held during the run, µs (null: none).
+    cpu_latency_us: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     samples: Option<Samples>,
 }
@@ -275,6 +277,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     if let Some(p) = args.rt_priority {
         cfg.realtime_priority = p;
     }
+    if args.cpu_latency_us.is_some() {
+        cfg.cpu_latency_us = args.cpu_latency_us;
+    }
     if let Some(c) = &args.stage_cpus {
         cfg.stage_cpus.clone_from(c);
     }
@@ -333,6 +338,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             )
         })?;
     }
+    // Held by the launcher for the whole run: the kernel drops it when the
+    // launcher exits, however it exits.
+    let _cpu_latency = cfg.hold_cpu_latency()?;
     // Before any child starts: capture and the observers inherit the
     // launcher's CPUs; the stages move themselves to theirs.
     let placement = cfg.place_run()?;
@@ -808,6 +816,7 @@ fn summarise(
         dropped: cfg.frames.saturating_sub(got.len() as u64),
         processes: Vec::new(),
         placement: None,
+        cpu_latency_us: cfg.cpu_latency_us,
         accepted_wrong: wrong.len() as u64,
         accepted_wrong_sequences: wrong,
         pids: Vec::new(),

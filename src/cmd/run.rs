@@ -53,6 +53,13 @@ pub struct RunArgs {
     /// loaded machine. Needs CAP_SYS_NICE or an rtprio limit.
     #[arg(long, value_name = "PRIORITY")]
     pub(crate) rt_priority: Option<u8>,
+    /// Longest wake-up from idle the CPUs may take while the run lasts, in
+    /// µs (the kernel's CPU latency QoS, /dev/cpu_dma_latency). 0 keeps idle
+    /// CPUs polling instead of halting: on a VM a halted vCPU wakes through
+    /// the hypervisor, with cold caches. Idle CPUs then stay busy. Needs
+    /// root.
+    #[arg(long, value_name = "US")]
+    pub(crate) cpu_latency_us: Option<u32>,
     /// CPUs of the five processing stages: auto (the last CPU; capture,
     /// observers and launcher on the rest), none (the scheduler decides),
     /// or a list like 1 or 2,3. One shared CPU makes each hop a local
@@ -208,6 +215,8 @@ struct Summary {
     all_failure_rate: f64,
     latency: Latency,
     mode: &'static str,
+    /// The CPU latency request held during the run, µs (null: none).
+    cpu_latency_us: Option<u32>,
     width: u32,
     height: u32,
     /// Always 0: one thread processes every frame in turn.
@@ -254,12 +263,14 @@ fn run_in_process(args: RunArgs) -> Result<()> {
     // On the stages' CPU, as in the multi-process run, so both compare alike.
     let placement = crate::stages::PipelineConfig {
         stage_cpus: args.stage_cpus.clone().unwrap_or_else(|| "auto".into()),
+        cpu_latency_us: args.cpu_latency_us,
         ..Default::default()
     };
     placement
         .validate()
         .context("invalid pipeline configuration")?;
     placement.pin_stage()?;
+    let _cpu_latency = placement.hold_cpu_latency()?;
     let object = args.object.load()?;
     let db = match &args.db {
         Some(path) => ViewDatabase::load(path)?,
@@ -416,6 +427,7 @@ fn run_in_process(args: RunArgs) -> Result<()> {
             processing: pct(processing),
         },
         mode: "in-process",
+        cpu_latency_us: args.cpu_latency_us,
         width: w,
         height: h,
         dropped: 0,

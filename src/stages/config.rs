@@ -63,6 +63,10 @@ pub struct PipelineConfig {
     /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
     /// the normal scheduler. Needs CAP_SYS_NICE (or an rtprio limit).
     pub realtime_priority: u8,
+    /// Longest wake-up from idle the CPUs may take while the run lasts, µs
+    /// (the kernel's CPU latency QoS; 0 = idle CPUs poll instead of
+    /// halting). Unset = the system's setting. Needs root.
+    pub cpu_latency_us: Option<u32>,
     /// CPUs of the five processing stages: `auto` (the last CPU when there
     /// are two or more; capture, the observers and the launcher keep the
     /// others), `none` (the scheduler decides) or a list such as `1` or
@@ -115,6 +119,7 @@ impl Default for PipelineConfig {
             rerun: None,
             record: None,
             realtime_priority: 0,
+            cpu_latency_us: None,
             stage_cpus: "auto".into(),
             first_frame: 0,
         }
@@ -177,6 +182,15 @@ impl PipelineConfig {
                 "realtime_priority",
                 &self.realtime_priority,
                 "must be 0 (off) or 1..=90",
+            ));
+        }
+        if let Some(us) = self.cpu_latency_us
+            && us > acch_ipc::sched::CpuLatencyRequest::MAX_MICROS
+        {
+            return Err(bad(
+                "cpu_latency_us",
+                &us,
+                "must be 0..=2000000000 µs (unset: the system's setting)",
             ));
         }
         if self.stage_cpus.parse::<StageCpus>().is_err() {
@@ -317,6 +331,21 @@ impl PipelineConfig {
         Ok(Some(cpus))
     }
 
+    /// Holds the run's CPU latency request (`cpu_latency_us`), if any, until
+    /// the returned guard drops.
+    pub fn hold_cpu_latency(&self) -> Result<Option<acch_ipc::sched::CpuLatencyRequest>> {
+        self.cpu_latency_us
+            .map(|us| {
+                acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
+                    format!(
+                        "cpu_latency_us = {us}: writing {} needs root; run without it",
+                        acch_ipc::sched::CpuLatencyRequest::PATH
+                    )
+                })
+            })
+            .transpose()
+    }
+
     /// Whether frames are copied through Unix sockets (`transport = "copy"`).
     pub fn copies_frames(&self) -> Result<bool> {
         match self.transport.as_str() {
@@ -407,6 +436,8 @@ mod tests {
             ("fps = \"fast\"", "fps"),
             ("colour = 1", "colour"),
             ("[zenoh]\nprefix = \"a/*\"", "zenoh.prefix"),
+            ("cpu_latency_us = 2000000001", "cpu_latency_us"),
+            ("cpu_latency_us = -1", "cpu_latency_us"),
         ] {
             let e = PipelineConfig::parse(text).expect_err(text);
             let msg = format!("{e:#}");
@@ -430,7 +461,7 @@ mod tests {
         ]
     }
 
-    const KEYS: [&str; 17] = [
+    const KEYS: [&str; 18] = [
         "object",
         "db",
         "source",
@@ -448,6 +479,7 @@ mod tests {
         "first_frame",
         "rerun",
         "stage_cpus",
+        "cpu_latency_us",
     ];
 
     proptest! {
