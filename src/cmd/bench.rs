@@ -356,17 +356,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
     // Held between the runs as well, so every mode meets the same machine;
     // refused here, before anything runs, when it cannot be held.
-    let _cpu_latency = args
-        .cpu_latency_us
-        .map(|us| {
-            acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
-                format!(
-                    "--cpu-latency-us {us}: writing {} needs root",
-                    acch_ipc::sched::CpuLatencyRequest::PATH
-                )
-            })
-        })
-        .transpose()?;
+    let _cpu_latency = crate::stages::hold_cpu_latency(args.cpu_latency_us, "--cpu-latency-us")?;
     let tmp = std::env::temp_dir().join(format!("acch-bench-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
     let mut configs = Vec::new();

@@ -270,7 +270,7 @@ fn run_in_process(args: RunArgs) -> Result<()> {
         .validate()
         .context("invalid pipeline configuration")?;
     placement.pin_stage()?;
-    let _cpu_latency = placement.hold_cpu_latency()?;
+    let _cpu_latency = crate::stages::hold_cpu_latency(args.cpu_latency_us, "--cpu-latency-us")?;
     let object = args.object.load()?;
     let db = match &args.db {
         Some(path) => ViewDatabase::load(path)?,

@@ -334,16 +334,7 @@ impl PipelineConfig {
     /// Holds the run's CPU latency request (`cpu_latency_us`), if any, until
     /// the returned guard drops.
     pub fn hold_cpu_latency(&self) -> Result<Option<acch_ipc::sched::CpuLatencyRequest>> {
-        self.cpu_latency_us
-            .map(|us| {
-                acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
-                    format!(
-                        "cpu_latency_us = {us}: writing {} needs root; run without it",
-                        acch_ipc::sched::CpuLatencyRequest::PATH
-                    )
-                })
-            })
-            .transpose()
+        hold_cpu_latency(self.cpu_latency_us, "cpu_latency_us =")
     }
 
     /// Whether frames are copied through Unix sockets (`transport = "copy"`).
@@ -381,6 +372,24 @@ impl PipelineConfig {
             .ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
         Ok(ViewDatabase::load(path)?)
     }
+}
+
+/// Holds a CPU latency request of `micros`, if given, until the returned
+/// guard drops; errors name the setting as `setting` (`--cpu-latency-us`).
+pub fn hold_cpu_latency(
+    micros: Option<u32>,
+    setting: &str,
+) -> Result<Option<acch_ipc::sched::CpuLatencyRequest>> {
+    micros
+        .map(|us| {
+            acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
+                format!(
+                    "{setting} {us}: holding {} needs root; run without it",
+                    acch_ipc::sched::CpuLatencyRequest::PATH
+                )
+            })
+        })
+        .transpose()
 }
 
 /// CPU numbers as `stage_cpus` writes them (`2,3`).

@@ -16,7 +16,7 @@ mod processing;
 mod runner;
 
 pub use capture::{frame_size, run_capture, sized_intrinsics, sized_renderer};
-pub use config::PipelineConfig;
+pub use config::{PipelineConfig, hold_cpu_latency};
 pub use json::ResultJson;
 pub use processing::{Confidence, Pose, Recognition, Seeding, Segmentation};
 pub use runner::{Stage, run_stage};
