@@ -7,6 +7,7 @@ pub mod eval;
 pub mod features;
 pub mod launch;
 pub mod listen;
+pub(crate) mod observe;
 pub mod record;
 pub mod render;
 pub mod run;

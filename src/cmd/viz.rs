@@ -5,10 +5,12 @@
 //! behind, iceoryx2 drops the oldest samples queued for it; the gaps are
 //! counted, logged to `viz/dropped` and reported at exit.
 
-use super::record::{Gaps, announce_ready, frame_mask, lower_priority};
+use super::observe::{
+    Gaps, Observe, Streams, announce_ready, frame_mask, lower_priority, response_values,
+};
 use crate::stages::PipelineConfig;
 use acch_core::ViewDatabase;
-use acch_ipc::{Observer, ResultMsg, StageId};
+use acch_ipc::{FrameHeader, Observer, ResultMsg, StageId};
 use acch_viz::{Logger, Observation, Sink, Truth};
 use anyhow::{Result, anyhow};
 use glam::{DAffine3, DQuat};
@@ -160,6 +162,112 @@ fn observation(m: &ResultMsg) -> Observation {
     }
 }
 
+/// The viewer's side of each sample: queued for the logging thread, or
+/// counted when the queue is full.
+struct Viewing {
+    s: VizSummary,
+    tx: std::sync::mpsc::SyncSender<Item>,
+    /// Samples missed before this pass's results (frames dropped included).
+    missed_before: u64,
+    /// This pass's last result: sequence, capture time.
+    last: Option<(u64, u64)>,
+}
+
+/// Queues `item` for the logging thread; false (and `dropped` counted)
+/// when the queue is full.
+fn queue(tx: &std::sync::mpsc::SyncSender<Item>, item: Item, dropped: &mut u64) -> bool {
+    match tx.try_send(item) {
+        Ok(()) => true,
+        Err(_) => {
+            *dropped += 1;
+            false
+        }
+    }
+}
+
+impl Viewing {
+    /// Every sample missed so far, frames the queue had no room for included.
+    fn missed(&self, gaps: &[Gaps; 4]) -> u64 {
+        gaps.iter().map(|g| g.missed).sum::<u64>() + self.s.frames_queue_full
+    }
+}
+
+impl Observe for Viewing {
+    fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<()> {
+        if !pixels.is_empty() {
+            let item = Item::Frame {
+                sequence: h.sequence,
+                capture_ns: h.capture_ns,
+                width: h.width as u32,
+                height: h.height as u32,
+                intrinsics: h.intrinsics,
+                rgb: pixels.to_vec(),
+            };
+            self.s.frames += u64::from(queue(&self.tx, item, &mut self.s.frames_queue_full));
+        }
+        Ok(())
+    }
+
+    fn mask(&mut self, h: &ResultMsg, payload: &[u8]) -> Result<()> {
+        let mut mask = Vec::new();
+        if h.segmented == 1 && frame_mask(h, payload, &mut mask) {
+            let item = Item::Mask {
+                sequence: h.sequence,
+                capture_ns: h.trail.captured_ns,
+                width: h.width as u32,
+                height: h.height as u32,
+                mask,
+            };
+            self.s.masks += u64::from(queue(&self.tx, item, &mut self.s.masks_queue_full));
+        }
+        Ok(())
+    }
+
+    fn response(&mut self, h: &ResultMsg, payload: &[u8]) -> Result<()> {
+        if h.estimated == 1 {
+            let item = Item::Response {
+                sequence: h.sequence,
+                capture_ns: h.trail.captured_ns,
+                values: response_values(payload),
+            };
+            self.s.responses += u64::from(queue(&self.tx, item, &mut self.s.responses_queue_full));
+        }
+        Ok(())
+    }
+
+    fn results_start(&mut self, gaps: &[Gaps; 4]) {
+        self.missed_before = self.missed(gaps);
+        self.last = None;
+    }
+
+    fn result(&mut self, m: &ResultMsg) -> Result<()> {
+        let item = Item::Observation(Box::new(observation(m)));
+        self.s.results += u64::from(queue(&self.tx, item, &mut self.s.results_queue_full));
+        self.last = Some((m.sequence, m.trail.captured_ns));
+        Ok(())
+    }
+
+    /// Logs the dropped count when it grew this pass (and on the first
+    /// frame, so the series starts at 0).
+    fn results_end(&mut self, gaps: &[Gaps; 4]) -> Result<()> {
+        if let Some((sequence, capture_ns)) = self.last
+            && (self.missed(gaps) != self.missed_before || sequence == 0)
+        {
+            let dropped = gaps[0].missed + self.s.frames_queue_full;
+            queue(
+                &self.tx,
+                Item::Dropped {
+                    sequence,
+                    capture_ns,
+                    dropped,
+                },
+                &mut 0,
+            );
+        }
+        Ok(())
+    }
+}
+
 /// Runs the viewer until SIGINT, then drains what is queued, flushes the
 /// sink and prints its counts.
 pub fn run(cfg: &PipelineConfig) -> Result<()> {
@@ -181,10 +289,7 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
         .collect();
     drop(db);
     let ipc = cfg.ipc("viz")?;
-    let frames = ipc.frame_input(false)?;
-    let masks = ipc.result_input(StageId::Segmentation)?;
-    let responses = ipc.result_input(StageId::Pose)?;
-    let results = ipc.result_input(StageId::Seeding)?;
+    let mut streams = Streams::open(&ipc)?;
     let log = Logger::new(sink.open("acch")?, &views)?;
     // rerun's log() blocks when its sink cannot keep up (a stalled or
     // absent viewer): it runs on its own thread behind a bounded queue, and
@@ -194,100 +299,23 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
     let sink_name = sink_arg.clone();
     let logger = std::thread::spawn(move || log_items(log, rx, &sink_name, done_tx));
     announce_ready(&ipc, Observer::Viz)?;
-    let mut s = VizSummary {
-        sink: sink_arg,
-        ..Default::default()
+    let mut out = Viewing {
+        s: VizSummary {
+            sink: sink_arg,
+            ..Default::default()
+        },
+        tx,
+        missed_before: 0,
+        last: None,
     };
-    let mut gaps = [Gaps::default(); 4];
-    let send = |item: Item, dropped: &mut u64| match tx.try_send(item) {
-        Ok(()) => true,
-        Err(_) => {
-            *dropped += 1;
-            false
-        }
-    };
-    let mut running = true;
-    while running {
-        running = ipc.keep_running();
-        // Wakes on final results; after SIGINT this pass is the final drain.
-        results.wait(Duration::from_millis(50))?;
-        while let Some(f) = frames.receive()? {
-            let h = f.user_header();
-            gaps[0].see(h.sequence);
-            if !f.payload().is_empty() {
-                let item = Item::Frame {
-                    sequence: h.sequence,
-                    capture_ns: h.capture_ns,
-                    width: h.width as u32,
-                    height: h.height as u32,
-                    intrinsics: h.intrinsics,
-                    rgb: f.payload().to_vec(),
-                };
-                s.frames += u64::from(send(item, &mut s.frames_queue_full));
-            }
-        }
-        while let Some(m) = masks.receive()? {
-            let h = m.user_header();
-            gaps[1].see(h.sequence);
-            let mut mask = Vec::new();
-            if h.segmented == 1 && frame_mask(h, m.payload(), &mut mask) {
-                let (w, hh) = (h.width as u32, h.height as u32);
-                let item = Item::Mask {
-                    sequence: h.sequence,
-                    capture_ns: h.trail.captured_ns,
-                    width: w,
-                    height: hh,
-                    mask,
-                };
-                s.masks += u64::from(send(item, &mut s.masks_queue_full));
-            }
-        }
-        while let Some(r) = responses.receive()? {
-            let h = r.user_header();
-            gaps[2].see(h.sequence);
-            if h.estimated == 1 {
-                let item = Item::Response {
-                    sequence: h.sequence,
-                    capture_ns: h.trail.captured_ns,
-                    values: r
-                        .payload()
-                        .chunks_exact(4)
-                        .map(|c| f32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
-                        .collect(),
-                };
-                s.responses += u64::from(send(item, &mut s.responses_queue_full));
-            }
-        }
-        let before = gaps.iter().map(|g| g.missed).sum::<u64>() + s.frames_queue_full;
-        let mut last = None;
-        while let Some(r) = results.receive()? {
-            let m = r.user_header();
-            gaps[3].see(m.sequence);
-            let item = Item::Observation(Box::new(observation(m)));
-            s.results += u64::from(send(item, &mut s.results_queue_full));
-            last = Some((m.sequence, m.trail.captured_ns));
-        }
-        let missed = gaps.iter().map(|g| g.missed).sum::<u64>() + s.frames_queue_full;
-        if let Some((sequence, capture_ns)) = last
-            && (missed != before || sequence == 0)
-        {
-            let dropped = gaps[0].missed + s.frames_queue_full;
-            send(
-                Item::Dropped {
-                    sequence,
-                    capture_ns,
-                    dropped,
-                },
-                &mut 0,
-            );
-        }
-    }
+    streams.observe_until_stopped(&ipc, &mut out)?;
+    let Viewing { mut s, tx, .. } = out;
     [
         s.frames_missed,
         s.masks_missed,
         s.responses_missed,
         s.results_missed,
-    ] = gaps.map(|g| g.missed);
+    ] = streams.missed();
     drop(tx);
     // The logger thread finishes the queue and flushes; a viewer that went
     // away must not keep this process (or the run) waiting.

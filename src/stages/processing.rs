@@ -578,14 +578,14 @@ mod tests {
             ..Default::default()
         };
         let mut back = Vec::new();
-        assert!(crate::cmd::record::frame_mask(&msg, &payload, &mut back));
+        assert!(crate::cmd::observe::frame_mask(&msg, &payload, &mut back));
         assert_eq!(back, mask);
         // An ROI outside the frame is refused, not read out of bounds.
         let outside = ResultMsg {
             roi: [10, 2, 6, 5],
             ..msg
         };
-        assert!(!crate::cmd::record::frame_mask(
+        assert!(!crate::cmd::observe::frame_mask(
             &outside, &payload, &mut back
         ));
         assert!(back.is_empty());
