@@ -2,26 +2,24 @@
 //! request for as long as the run lasts, and the kernel's own file shows it;
 //! where the file cannot be written the run refuses at once, saying why.
 
+use acch_ipc::sched::CpuLatencyRequest;
 use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const PATH: &str = "/dev/cpu_dma_latency";
-
 /// The bound in force now, µs.
 fn in_force() -> u32 {
-    let mut v = [0u8; 4];
-    std::fs::File::open(PATH)
-        .and_then(|mut f| f.read_exact(&mut v))
-        .expect("read /dev/cpu_dma_latency");
-    i32::from_ne_bytes(v).max(0) as u32
+    CpuLatencyRequest::in_force().expect("read the kernel's CPU latency")
 }
 
 #[test]
 fn a_run_holds_the_cpu_latency_it_is_given_while_it_lasts() {
     // Opening for writing adds an unconstrained request: a probe of the
     // permission that changes nothing.
-    let writable = std::fs::OpenOptions::new().write(true).open(PATH).is_ok();
+    let writable = std::fs::OpenOptions::new()
+        .write(true)
+        .open(CpuLatencyRequest::PATH)
+        .is_ok();
     let dir = std::env::temp_dir().join(format!("acch-cpu-latency-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("run.json");

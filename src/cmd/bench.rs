@@ -173,15 +173,12 @@ fn run_once(
         .args(["--resolution", &format!("{w}x{h}")])
         .args(["--seed", &args.seed.to_string()])
         .args(["--stage-cpus", &args.stage_cpus])
-        .args(
-            args.cpu_latency_us
-                .map(|us| ["--cpu-latency-us".to_string(), us.to_string()])
-                .iter()
-                .flatten(),
-        )
         .arg("--samples")
         .arg("--json")
         .arg(&out);
+    if let Some(us) = args.cpu_latency_us {
+        cmd.args(["--cpu-latency-us", &us.to_string()]);
+    }
     match mode {
         "in-process" => {
             cmd.arg("--in-process");

@@ -384,7 +384,7 @@ pub fn hold_cpu_latency(
         .map(|us| {
             acch_ipc::sched::CpuLatencyRequest::hold(us).with_context(|| {
                 format!(
-                    "{setting} {us}: holding {} needs root; run without it",
+                    "{setting} {us}: cannot hold {} (it needs root; run without it)",
                     acch_ipc::sched::CpuLatencyRequest::PATH
                 )
             })
