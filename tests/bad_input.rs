@@ -4,18 +4,13 @@
 //! negative parameters. Frames of another size mid-stream are skipped and
 //! the run goes on.
 
+mod common;
+
+use common::free_port;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 use std::time::Duration;
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// Runs `acch ARGS` with a loopback zenoh port and a time limit.
 fn acch(dir: &Path, args: &[&str]) -> Output {

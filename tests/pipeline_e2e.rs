@@ -3,27 +3,12 @@
 //! receives the results and seeds over zenoh and checks the seeds' rotation
 //! against the renderer's ground truth carried in each result.
 
+mod common;
+
+use common::{Guard, free_port};
 use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// Kills the child on drop, so a failing test leaves no process behind.
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 fn python_has_zenoh() -> bool {
     Command::new("python3")

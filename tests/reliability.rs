@@ -6,44 +6,20 @@
 //! drops, and the run must recover; the shared memory and sockets of a run
 //! are the user's own.
 
+mod common;
+
+use common::{Guard, free_port, summary};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
 /// Pipelines share 2 cores: one at a time, so timing stays meaningful.
 static SERIAL: Mutex<()> = Mutex::new(());
-
-/// Kills the launcher on drop (its children stop with it).
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        // SAFETY: kill(2) on our own child.
-        unsafe { libc::kill(self.0.id() as i32, libc::SIGINT) };
-        let until = Instant::now() + Duration::from_secs(8);
-        while Instant::now() < until {
-            if let Ok(Some(_)) = self.0.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// Starts `acch run` on `config`; stderr lines arrive on the receiver (and
 /// are echoed for the test log).
@@ -133,10 +109,6 @@ fn wait_exit(g: &mut Guard, timeout: Duration) -> std::process::ExitStatus {
         );
         std::thread::sleep(Duration::from_millis(100));
     }
-}
-
-fn summary(json: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
 }
 
 const STAGES: [&str; 6] = [
@@ -318,7 +290,19 @@ fn shared_memory_is_owner_only_and_zenoh_listens_on_loopback() {
     let launcher = run.0.id();
     wait_for(&rx, "stages connected", Duration::from_secs(240));
     std::thread::sleep(Duration::from_secs(1));
-    // Every file iceoryx2 made for this run: no access for group or others.
+    // Every file iceoryx2 made for this run, and the run's wake-up words:
+    // no access for group or others.
+    let wake_prefix = format!("acch-{launcher}-");
+    let wake_files = || {
+        std::fs::read_dir("/dev/shm")
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(&wake_prefix) && n.ends_with(".wake"))
+            .count()
+    };
+    // The frames' and the five stages' results.
+    assert_eq!(wake_files(), 6, "wake-up words of the run");
     let mut checked = 0;
     let mut open = Vec::new();
     for root in ["/dev/shm", "/tmp/iceoryx2"] {
@@ -337,7 +321,10 @@ fn shared_memory_is_owner_only_and_zenoh_listens_on_loopback() {
                     continue;
                 }
                 let name = e.file_name().to_string_lossy().into_owned();
-                if root == "/dev/shm" && !name.starts_with("iox2") {
+                if root == "/dev/shm"
+                    && !name.starts_with("iox2")
+                    && !name.starts_with(&wake_prefix)
+                {
                     continue;
                 }
                 checked += 1;
@@ -366,6 +353,8 @@ fn shared_memory_is_owner_only_and_zenoh_listens_on_loopback() {
     assert!(listening.iter().any(|(_, p)| *p == port), "{listening:?}");
     let status = wait_exit(&mut run, Duration::from_secs(60));
     assert!(status.success());
+    // The launcher took the run's wake-up words with it.
+    assert_eq!(wake_files(), 0, "wake-up words left after the run");
 }
 
 /// TCP sockets in LISTEN state owned by `pid`, from /proc/PID/net/tcp{,6}

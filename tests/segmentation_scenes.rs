@@ -5,12 +5,10 @@
 //! `acch eval` writes its report.
 
 use acch_capture::{
-    Background, DEFAULT_DISTANCE, Intrinsics, Object, Rendered, Renderer, SceneConfig, ViewPose,
-    ViewSpec,
+    Background, DEFAULT_DISTANCE, Intrinsics, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
 };
 use acch_core::{IndexImage, ViewDatabase};
-use acch_pose::train::{LabelledView, TrainConfig, build_database};
-use acch_recognition::{Detection, Detector, RecognitionModel, RecognitionParams, RegionCounts};
+use acch_recognition::{Detection, Detector, RecognitionModel, RegionCounts};
 use acch_segmentation::Segmenter;
 use std::sync::{Arc, OnceLock};
 
@@ -31,32 +29,8 @@ fn fruitbox() -> &'static Trained {
             thetas_deg: vec![45.0, 60.0, 75.0, 90.0],
             phi_step_deg: 30.0,
         };
-        let train: Vec<Rendered> = grid
-            .views(DEFAULT_DISTANCE, 0)
-            .iter()
-            .map(|v| r.render(v, 0))
-            .collect();
-        let labelled: Vec<LabelledView> = train
-            .iter()
-            .map(|t| LabelledView {
-                rgb: t.image.as_raw(),
-                mask: t.mask.as_raw(),
-                width: t.image.width(),
-                height: t.image.height(),
-                theta_deg: t.truth.theta_deg as f32,
-                phi_deg: t.truth.phi_deg as f32,
-                scale: 1.0,
-            })
-            .collect();
-        let db = build_database(
-            "fruitbox",
-            DEFAULT_DISTANCE as f32,
-            &labelled,
-            &TrainConfig::default(),
-        )
-        .unwrap();
-        let model =
-            RecognitionModel::train(&labelled, &db.palette, &RecognitionParams::default()).unwrap();
+        let acch_testkit::Trained { db, model } =
+            acch_testkit::train_on_views("fruitbox", &r, &grid);
         Trained { object, db, model }
     })
 }

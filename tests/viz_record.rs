@@ -4,7 +4,10 @@
 //! accepts, and `--source mcap:FILE` replays a recording through the
 //! pipeline to the very same poses, bit for bit.
 
+mod common;
+
 use acch_record::{TOPIC_RESULT, read_json};
+use common::{free_port, summary};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -13,14 +16,6 @@ use std::sync::Mutex;
 /// Pipelines share 2 cores: one at a time, or three pipelines' stages on
 /// the one stage CPU stall each other until frames overflow their queues.
 static SERIAL: Mutex<()> = Mutex::new(());
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// A configuration that keeps zenoh on a free loopback port.
 fn config(dir: &Path) -> PathBuf {
@@ -49,10 +44,6 @@ fn acch_run(dir: &Path, args: &[&str]) -> Output {
         String::from_utf8_lossy(&out.stderr)
     );
     out
-}
-
-fn summary(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 /// The results of a recording by sequence.

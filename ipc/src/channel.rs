@@ -4,12 +4,14 @@
 
 use crate::IpcError;
 use crate::msg::{FrameHeader, ResultMsg, StageId};
+use crate::wake::WakeWord;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
+use std::cell::Cell;
 use std::collections::VecDeque;
 use std::fmt::Debug;
 use std::time::Duration;
@@ -64,15 +66,9 @@ fn err<E: Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
     move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
 }
 
-/// The flavour of the stages' wake-up events.
-type WakeSvc = crate::service::FutexService;
-
 /// One process's handle on iceoryx2.
 pub struct Ipc {
     node: Node<Svc>,
-    /// The node of the stages' wake-up events (another flavour, so another
-    /// node).
-    wake_node: Node<WakeSvc>,
     names: Names,
     qos: Qos,
 }
@@ -84,16 +80,7 @@ impl Ipc {
             .name(&NodeName::new(node_name).map_err(err("node name"))?)
             .create::<Svc>()
             .map_err(err("creating the node"))?;
-        let wake_node = NodeBuilder::new()
-            .name(&NodeName::new(node_name).map_err(err("node name"))?)
-            .create::<WakeSvc>()
-            .map_err(err("creating the wake-up node"))?;
-        Ok(Ipc {
-            node,
-            wake_node,
-            names,
-            qos,
-        })
+        Ok(Ipc { node, names, qos })
     }
 
     /// False once the process was asked to terminate (SIGINT, SIGTERM).
@@ -158,34 +145,11 @@ impl Ipc {
             .map_err(err("event service"))
     }
 
-    /// The wake-up event of stream `what`: the one consumer that is the
-    /// next stage sleeps on it; a restarted stage's ports join those of the
-    /// dead one until the launcher cleans them up.
-    fn wake_event(
-        &self,
-        what: &str,
-    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<WakeSvc>, IpcError> {
-        self.wake_node
-            .service_builder(&self.names.name(&format!("{what}/wake"))?)
-            .event()
-            .max_listeners(4)
-            .max_notifiers(4)
-            .open_or_create()
-            .map_err(err("wake-up event service"))
-    }
-
-    fn wake_notifier(&self, what: &str) -> Result<Notifier<WakeSvc>, IpcError> {
-        self.wake_event(what)?
-            .notifier_builder()
-            .create()
-            .map_err(err("wake-up notifier"))
-    }
-
-    fn wake_listener(&self, what: &str) -> Result<Listener<WakeSvc>, IpcError> {
-        self.wake_event(what)?
-            .listener_builder()
-            .create()
-            .map_err(err("wake-up listener"))
+    /// Stream `what`'s wake-up word ([`crate::wake`]), which the next
+    /// stage sleeps on.
+    fn wake_word(&self, what: &str) -> Result<WakeWord, IpcError> {
+        WakeWord::open(&self.names.instance, what)
+            .map_err(|e| IpcError::Iceoryx(format!("wake-up word of {what}: {e}")))
     }
 
     /// The frame publisher (capture).
@@ -204,16 +168,16 @@ impl Ipc {
             .map_err(err("frame notifier"))?;
         Ok(Output {
             publisher,
-            wake: self.wake_notifier("frames")?,
+            wake: self.wake_word("frames")?,
             notifier,
         })
     }
 
     /// The first stage's frame subscriber: sleeps on the frames' wake-up
-    /// event ([`Input::wait_blocking`]).
+    /// word ([`Input::wait`]).
     pub fn frame_stage_input(&self) -> Result<Input<FrameHeader>, IpcError> {
         let mut input = self.frame_input(false)?;
-        input.wake = Some(self.wake_listener("frames")?);
+        input.wake = Some(self.wake_word("frames")?);
         Ok(input)
     }
 
@@ -238,6 +202,7 @@ impl Ipc {
             subscriber,
             listener,
             wake: None,
+            seen: Cell::new(0),
         })
     }
 
@@ -261,13 +226,13 @@ impl Ipc {
             .map_err(err("result notifier"))?;
         Ok(Output {
             publisher,
-            wake: self.wake_notifier(stage.name())?,
+            wake: self.wake_word(stage.name())?,
             notifier,
         })
     }
 
     /// The next stage's subscriber to `stage`'s results: sleeps on the
-    /// stream's wake-up event ([`Input::wait_blocking`]).
+    /// stream's wake-up word ([`Input::wait`]).
     pub fn result_stage_input(&self, stage: StageId) -> Result<Input<ResultMsg>, IpcError> {
         let subscriber = self
             .result_service(stage)?
@@ -277,7 +242,8 @@ impl Ipc {
         Ok(Input {
             subscriber,
             listener: None,
-            wake: Some(self.wake_listener(stage.name())?),
+            wake: Some(self.wake_word(stage.name())?),
+            seen: Cell::new(0),
         })
     }
 
@@ -298,6 +264,7 @@ impl Ipc {
             subscriber,
             listener,
             wake: None,
+            seen: Cell::new(0),
         })
     }
 
@@ -319,10 +286,10 @@ impl Ipc {
 }
 
 /// Publishes a header + `[u8]` payload and wakes the consumers: the next
-/// stage first, on its wake-up event, then everyone else.
+/// stage first, on its wake-up word, then everyone else.
 pub struct Output<H: Debug + ZeroCopySend + 'static> {
     publisher: Publisher<Svc, [u8], H>,
-    wake: Notifier<WakeSvc>,
+    wake: WakeWord,
     notifier: Notifier<Svc>,
 }
 
@@ -354,7 +321,7 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
         let n = sample.send().map_err(err("send"))?;
-        self.wake.notify().map_err(err("wake"))?;
+        self.wake.post().map_err(err("wake"))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
@@ -383,24 +350,34 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         *sample.user_header_mut() = header;
         let n = sample.send().map_err(err("send"))?;
-        self.wake.notify().map_err(err("wake"))?;
+        self.wake.post().map_err(err("wake"))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
 }
 
-/// Receives header + payload samples; sleeps on the event when it has one.
+/// Receives header + payload samples; sleeps on the stream's wake-up word
+/// (a stage's input) or its event (everyone else) when it has one.
 pub struct Input<H: Debug + ZeroCopySend + 'static> {
     subscriber: Subscriber<Svc, [u8], H>,
     listener: Option<Listener<Svc>>,
-    /// A stage's input: its wake-up event.
-    wake: Option<Listener<WakeSvc>>,
+    /// A stage's input: its wake-up word.
+    wake: Option<WakeWord>,
+    /// The wake-up word as read just before the last look at the queue: a
+    /// publish after that look has moved it, so the next wait returns at
+    /// once instead of sleeping through it.
+    seen: Cell<u32>,
 }
 
 impl<H: Debug + ZeroCopySend + 'static> Input<H> {
-    /// Blocks until the input's event fires or `timeout` passes (a timeout
-    /// lets the caller check for termination); drains the pending events.
+    /// Sleeps until the upstream publishes (the wake-up word moves on from
+    /// what it read before the last [`receive`](Self::receive)), its event
+    /// fires, a signal arrives or `timeout` passes (so the caller can check
+    /// whether to stop). Drains the pending events.
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        if let Some(w) = &self.wake {
+            return w.wait(self.seen.get(), timeout).map_err(err("wait"));
+        }
         if let Some(l) = &self.listener {
             match l.timed_wait(|_| {}, timeout) {
                 // A termination request: the caller sees it in `keep_running`.
@@ -411,23 +388,12 @@ impl<H: Debug + ZeroCopySend + 'static> Input<H> {
         Ok(())
     }
 
-    /// A stage's wait: asleep in the kernel, with no timeout, until the
-    /// upstream stage's wake-up or a signal (the caller then checks
-    /// `keep_running`; the launcher repeats its stop signal in case it came
-    /// just before the sleep). Drains the pending wake-ups. An input
-    /// without a wake-up event waits on its event, up to `timeout`.
-    pub fn wait_blocking(&self, timeout: Duration) -> Result<(), IpcError> {
-        match &self.wake {
-            Some(l) => match l.blocking_wait(|_| {}) {
-                Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
-                Err(e) => Err(err("wait")(e)),
-            },
-            None => self.wait(timeout),
-        }
-    }
-
     /// The next queued sample, if any.
     pub fn receive(&self) -> Result<Option<Sample<Svc, [u8], H>>, IpcError> {
+        if let Some(w) = &self.wake {
+            // Read before looking: see `seen`.
+            self.seen.set(w.current());
+        }
         self.subscriber.receive().map_err(err("receive"))
     }
 }

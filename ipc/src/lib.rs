@@ -10,8 +10,8 @@
 pub mod channel;
 pub mod msg;
 pub mod sched;
-pub mod service;
 pub mod shm;
+pub mod wake;
 pub mod zenoh_io;
 
 pub use channel::{FrameHistory, FrameSample, Input, Ipc, Names, Output, Qos, ResultSample, Svc};
@@ -34,17 +34,14 @@ pub enum IpcError {
 }
 
 /// Removes the shared-memory resources of dead iceoryx2 nodes (a crashed
-/// or killed stage), of both flavours a process uses. Returns how many
-/// nodes were cleaned.
+/// or killed stage) and the wake-up words of runs whose launcher died
+/// ([`wake::remove_stale`]). Returns how many nodes were cleaned.
 pub fn remove_stale_resources() -> usize {
-    remove_stale::<Svc>() + remove_stale::<service::FutexService>()
-}
-
-fn remove_stale<S: iceoryx2::service::Service>() -> usize {
+    wake::remove_stale();
     use iceoryx2::prelude::*;
     let mut n = 0;
-    let _ = Node::<S>::list(Config::global_config(), |state| {
-        if let NodeState::<S>::Dead(view) = state
+    let _ = Node::<Svc>::list(Config::global_config(), |state| {
+        if let NodeState::<Svc>::Dead(view) = state
             && view.try_remove_stale_resources().is_ok()
         {
             n += 1;
@@ -107,6 +104,7 @@ mod tests {
         assert_eq!(here, written);
         assert_eq!(here, (h.shm_file, h.shm_offset));
         assert!(woke >= h.trail.stages[0].published_ns);
+        wake::remove_run(&format!("test-{}", std::process::id()));
     }
 
     #[test]

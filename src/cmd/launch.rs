@@ -37,7 +37,8 @@ impl Children {
         let until = Instant::now() + grace;
         for p in &mut self.0 {
             let (id, c) = (p.name, &mut p.child);
-            let mut polls = 0u32;
+            // A stage that was about to sleep when the signal came notices
+            // it at the end of its sleep (200 ms at most).
             loop {
                 match c.try_wait() {
                     Ok(Some(status)) => {
@@ -48,14 +49,6 @@ impl Children {
                     }
                     Ok(None) if Instant::now() < until => {
                         std::thread::sleep(Duration::from_millis(20));
-                        polls += 1;
-                        if polls.is_multiple_of(5) {
-                            // A stage sleeps on its input with no timeout; a
-                            // signal that came just before it went to sleep
-                            // did not wake it, so say it again.
-                            // SAFETY: kill(2) on our own child's pid.
-                            unsafe { libc::kill(c.id() as libc::pid_t, libc::SIGINT) };
-                        }
                     }
                     _ => {
                         tracing::warn!("{id} did not stop in time: killed");
@@ -312,6 +305,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     }
     cfg.instance = std::process::id().to_string();
+    // The stages' wake-up files go with the run, however it ends.
+    let _wake_files = acch_ipc::wake::RunFiles::new(&cfg.instance);
     cfg.first_frame = 0;
     // One clear error here rather than one from every stage process.
     cfg.validate().context("invalid pipeline configuration")?;

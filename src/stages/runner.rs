@@ -127,9 +127,9 @@ pub fn run_stage<S: Stage>(cfg: &PipelineConfig, mut stage: S) -> Result<()> {
     while ipc.keep_running() {
         // Asleep until the upstream stage's wake-up or a stop signal.
         if let Some(r) = &results {
-            r.wait_blocking(WAIT)?;
+            r.wait(WAIT)?;
         } else if let Some(f) = &frames {
-            f.wait_blocking(WAIT)?;
+            f.wait(WAIT)?;
         }
         loop {
             let mut msg;

@@ -10,8 +10,7 @@ use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
 };
 use acch_core::{IndexImage, Palette};
-use acch_pose::train::{LabelledView, TrainConfig, build_database};
-use acch_recognition::{Detector, RecognitionModel, RecognitionParams};
+use acch_recognition::{Detector, RecognitionModel};
 use acch_segmentation::Segmenter;
 use criterion::Criterion;
 use std::hint::black_box;
@@ -23,34 +22,8 @@ use std::time::Duration;
 /// the per-cell counting has to visit).
 fn train(object: &Arc<Object>) -> (Palette, RecognitionModel) {
     let plain = Renderer::new(SceneConfig::new(object.clone(), Background::default()), 0);
-    let grid = ViewSpec::training_grid();
-    let train: Vec<_> = grid
-        .views(DEFAULT_DISTANCE, 0)
-        .iter()
-        .map(|v| plain.render(v, 0))
-        .collect();
-    let labelled: Vec<LabelledView> = train
-        .iter()
-        .map(|t| LabelledView {
-            rgb: t.image.as_raw(),
-            mask: t.mask.as_raw(),
-            width: t.image.width(),
-            height: t.image.height(),
-            theta_deg: t.truth.theta_deg as f32,
-            phi_deg: t.truth.phi_deg as f32,
-            scale: 1.0,
-        })
-        .collect();
-    let db = build_database(
-        "fruitbox",
-        DEFAULT_DISTANCE as f32,
-        &labelled,
-        &TrainConfig::default(),
-    )
-    .unwrap();
-    let model =
-        RecognitionModel::train(&labelled, &db.palette, &RecognitionParams::default()).unwrap();
-    (db.palette, model)
+    let t = acch_testkit::train_on_views("fruitbox", &plain, &ViewSpec::training_grid());
+    (t.db.palette, t.model)
 }
 
 fn main() {

@@ -3,8 +3,7 @@
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
 };
-use acch_pose::train::{LabelledView, TrainConfig, build_database};
-use acch_recognition::{Detector, RecognitionModel, RecognitionParams};
+use acch_recognition::Detector;
 use acch_segmentation::Segmenter;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::Arc;
@@ -39,32 +38,8 @@ fn detect_and_segment_do_not_allocate_once_warm() {
         thetas_deg: vec![50.0, 80.0],
         phi_step_deg: 60.0,
     };
-    let train: Vec<_> = grid
-        .views(DEFAULT_DISTANCE, 0)
-        .iter()
-        .map(|v| plain.render(v, 0))
-        .collect();
-    let labelled: Vec<LabelledView> = train
-        .iter()
-        .map(|t| LabelledView {
-            rgb: t.image.as_raw(),
-            mask: t.mask.as_raw(),
-            width: 640,
-            height: 480,
-            theta_deg: t.truth.theta_deg as f32,
-            phi_deg: t.truth.phi_deg as f32,
-            scale: 1.0,
-        })
-        .collect();
-    let db = build_database(
-        "fruitbox",
-        DEFAULT_DISTANCE as f32,
-        &labelled,
-        &TrainConfig::default(),
-    )
-    .unwrap();
-    let model =
-        RecognitionModel::train(&labelled, &db.palette, &RecognitionParams::default()).unwrap();
+    let acch_testkit::Trained { db, model } =
+        acch_testkit::train_on_views("fruitbox", &plain, &grid);
     let scene = Renderer::new(SceneConfig::new(object, Background::ClutterSimilar), 3);
     let frames: Vec<_> = [(55.0, 10.0), (85.0, 200.0), (65.0, 290.0)]
         .iter()
