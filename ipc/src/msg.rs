@@ -207,7 +207,7 @@ pub struct FrameHeader {
     /// The arm's camera pose when known.
     pub arm: ArmPose,
     /// Where the capture process wrote the pixels: hash of the shared-memory
-    /// file name and the offset inside it (see [`crate::shm_location`]);
+    /// file name and the offset inside it (see [`crate::ShmLocator`]);
     /// readers compare with where they find them.
     pub shm_file: u64,
     /// Offset of the pixels in that file.
