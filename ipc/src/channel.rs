@@ -66,6 +66,13 @@ fn err<E: Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
     move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
 }
 
+fn wake_error(word: &WakeWord, source: std::io::Error) -> IpcError {
+    IpcError::Wake {
+        path: word.path().to_owned(),
+        source,
+    }
+}
+
 /// One process's handle on iceoryx2.
 pub struct Ipc {
     node: Node<Svc>,
@@ -148,8 +155,10 @@ impl Ipc {
     /// Stream `what`'s wake-up word ([`crate::wake`]), which the next
     /// stage sleeps on.
     fn wake_word(&self, what: &str) -> Result<WakeWord, IpcError> {
-        WakeWord::open(&self.names.instance, what)
-            .map_err(|e| IpcError::Iceoryx(format!("wake-up word of {what}: {e}")))
+        WakeWord::open(&self.names.instance, what).map_err(|source| IpcError::Wake {
+            path: crate::wake::path(&self.names.instance, what),
+            source,
+        })
     }
 
     /// The frame publisher (capture).
@@ -321,7 +330,9 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
         let n = sample.send().map_err(err("send"))?;
-        self.wake.post().map_err(err("wake"))?;
+        self.wake
+            .post()
+            .map_err(|source| wake_error(&self.wake, source))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
@@ -350,7 +361,9 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         let mut sample = unsafe { sample.assume_init() };
         *sample.user_header_mut() = header;
         let n = sample.send().map_err(err("send"))?;
-        self.wake.post().map_err(err("wake"))?;
+        self.wake
+            .post()
+            .map_err(|source| wake_error(&self.wake, source))?;
         self.notifier.notify().map_err(err("notify"))?;
         Ok(n)
     }
@@ -376,7 +389,9 @@ impl<H: Debug + ZeroCopySend + 'static> Input<H> {
     /// whether to stop). Drains the pending events.
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
         if let Some(w) = &self.wake {
-            return w.wait(self.seen.get(), timeout).map_err(err("wait"));
+            return w
+                .wait(self.seen.get(), timeout)
+                .map_err(|source| wake_error(w, source));
         }
         if let Some(l) = &self.listener {
             match l.timed_wait(|_| {}, timeout) {

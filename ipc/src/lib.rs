@@ -31,6 +31,14 @@ pub enum IpcError {
     /// A zenoh call failed.
     #[error("zenoh: {0}")]
     Zenoh(String),
+    /// A stream's wake-up word could not be opened, posted or waited on.
+    #[error("wake-up word {}: {source}", path.display())]
+    Wake {
+        /// Its file.
+        path: std::path::PathBuf,
+        /// What the system said.
+        source: std::io::Error,
+    },
 }
 
 /// Removes the shared-memory resources of dead iceoryx2 nodes (a crashed

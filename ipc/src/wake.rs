@@ -43,6 +43,8 @@ pub fn path(instance: &str, what: &str) -> PathBuf {
 /// A stream's wake-up counter, mapped from its shared-memory file.
 pub struct WakeWord {
     word: NonNull<AtomicU32>,
+    /// The file, for error messages.
+    path: PathBuf,
 }
 
 // SAFETY: the mapping is shared memory accessed only through atomics, and
@@ -85,7 +87,12 @@ impl WakeWord {
         // The mapping outlives the descriptor.
         drop(file);
         let word = NonNull::new(addr.cast::<AtomicU32>()).ok_or_else(io::Error::last_os_error)?;
-        Ok(WakeWord { word })
+        Ok(WakeWord { word, path })
+    }
+
+    /// The word's file.
+    pub fn path(&self) -> &std::path::Path {
+        &self.path
     }
 
     fn word(&self) -> &AtomicU32 {
