@@ -133,7 +133,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .spawn()?;
     // Time to connect; samples sent before would be lost to it.
     std::thread::sleep(Duration::from_millis(500));
-    // A stage's working set, written in full before each send.
+    // A stage's working set: every cache line of it is written before each
+    // send, as a stage's compute would.
     let mut work = vec![0u8; evict_kb * 1024];
     let mut cost = Vec::with_capacity(messages);
     for i in 0..messages {

@@ -12,14 +12,16 @@
 //! `cargo run --release -p acch-ipc --example hop_floor -- --same-cpu
 //! --rt 20 --cpu-latency-us 0 --period-ms 33`, one message per 30 fps
 //! frame: the event's notify-to-awake took 30-31 µs p50, a bare futex
-//! between two processes 16 µs. After a frame period asleep the processes
-//! start cold, and the event's bookkeeping (listener lists, the id bitset,
-//! deadline checks) is cache misses on the critical path.
+//! between two C processes 16 µs. After a frame period asleep the
+//! processes start cold, and the event's bookkeeping (listener lists, the
+//! id bitset, deadline checks) is cache misses on the critical path. With
+//! the word, the whole hop (send to the stage awake with its sample) is
+//! 24-27 µs p50 there, against 34-35 µs with the event.
 //!
 //! The files are `/dev/shm/acch-<instance>-<stream>.wake`, mode 0600. Any
 //! process of the run creates a stream's file on first use (a restarted
 //! stage finds the one its peers use); the launcher removes the run's files
-//! when it ends ([`remove_run`]), and [`remove_stale`] those of runs whose
+//! when it ends ([`RunFiles`]), and [`remove_stale`] those of runs whose
 //! launcher died.
 
 use std::fs::OpenOptions;
