@@ -2,7 +2,10 @@
 //! request for as long as the run lasts, and the kernel's own file shows it;
 //! where the file cannot be written the run refuses at once, saying why.
 
+mod common;
+
 use acch_ipc::sched::CpuLatencyRequest;
+use common::summary;
 use std::io::Read;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -73,8 +76,7 @@ fn a_run_holds_the_cpu_latency_it_is_given_while_it_lasts() {
     assert_eq!(tightest, before.min(7), "the request was not in force");
     // Released with the launcher.
     assert_eq!(in_force(), before);
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let summary = summary(&json);
     assert_eq!(summary["cpu_latency_us"], 7);
     assert_eq!(summary["dropped"], 0);
     let _ = std::fs::remove_dir_all(&dir);
