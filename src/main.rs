@@ -1,10 +1,6 @@
 //! `acch`: train view databases, estimate 2-DOF poses, evaluate, and run the pipeline.
 
 mod cmd;
-mod model;
-mod pipeline;
-mod plot;
-mod stages;
 
 use clap::{Parser, Subcommand};
 
@@ -41,9 +37,7 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     restore_sigpipe();
-    // iceoryx2 warns in every process that it runs on its default config,
-    // which is intended; IOX2_LOG_LEVEL still raises it.
-    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
+    acch_ipc::quiet_iceoryx2_logs();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()

@@ -35,13 +35,24 @@
 //! does with the stages).
 
 use acch_ipc::sched::{CpuLatencyRequest, allowed_cpus, pin_to, set_fifo};
-use acch_ipc::{Ipc, Names, Qos, ResultMsg, StageId, now_ns};
+use acch_ipc::{Ipc, StreamSpec, Wake, ZeroCopySend, now_ns};
 use std::process::Command;
 use std::time::Duration;
 
-const QOS: Qos = Qos {
-    frame_history: 1,
-    max_frame_bytes: 64,
+/// A header-only message, as small as a stage's result header needs.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, ZeroCopySend)]
+struct Hop {
+    sequence: u64,
+    published_ns: u64,
+}
+
+/// A stage's result stream, sized as the pipeline sizes it.
+const STREAM: StreamSpec = StreamSpec {
+    name: "hop",
+    subscribers: 4,
+    buffer: 8,
+    borrowed: 2,
 };
 
 /// p50, p90, p99 and max of `v` (microseconds), as one line.
@@ -94,17 +105,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if let Some(p) = rt {
             set_fifo(p + 1)?;
         }
-        let ipc = Ipc::new(Names::new(instance), "hop-subscriber", QOS)?;
-        let input = if socket {
-            ipc.result_input(StageId::Recognition)?
-        } else {
-            ipc.result_stage_input(StageId::Recognition)?
-        };
+        let ipc = Ipc::new(instance, "hop-subscriber")?;
+        let input = ipc.input::<Hop>(STREAM, if socket { Wake::Event } else { Wake::Word })?;
         let mut latency = Vec::with_capacity(messages);
         while latency.len() < messages && ipc.keep_running() {
             input.wait(Duration::from_millis(200))?;
             while let Some(s) = input.receive()? {
-                let sent = s.user_header().trail.stages[0].published_ns;
+                let sent = s.user_header().published_ns;
                 latency.push(now_ns().saturating_sub(sent) as f64 / 1e3);
             }
         }
@@ -125,8 +132,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         set_fifo(p)?;
     }
     let instance = format!("hop-floor-{}", std::process::id());
-    let ipc = Ipc::new(Names::new(&instance), "hop-publisher", QOS)?;
-    let output = ipc.result_output(StageId::Recognition, 64)?;
+    let ipc = Ipc::new(&instance, "hop-publisher")?;
+    let output = ipc.output::<Hop>(STREAM, 64)?;
     let mut subscriber = Command::new(&args[0])
         .args(["--subscriber", &instance, &last.to_string()])
         .args(&args[1..])
@@ -143,10 +150,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         std::hint::black_box(&work);
         let t0 = now_ns();
-        output.send_in_place(0, |_, h: &mut ResultMsg| {
+        output.send_in_place(0, |_, h| {
             h.sequence = i as u64;
-            h.trail.stages[0].published_ns = now_ns();
-        })?;
+            h.published_ns = now_ns();
+            Ok::<(), std::convert::Infallible>(())
+        })??;
         cost.push(now_ns().saturating_sub(t0) as f64 / 1e3);
         std::thread::sleep(Duration::from_millis(period_ms));
     }

@@ -1,9 +1,9 @@
-//! iceoryx2 services of one pipeline run: a `[u8]` payload with a
-//! `#[repr(C)]` user header, plus an event service per data service so a
-//! consumer sleeps until its input arrives.
+//! iceoryx2 streams of one pipeline run: a `[u8]` payload with a
+//! `#[repr(C)]` user header `H` (a typed view the pipeline defines beside
+//! the stage that writes it), a wake-up word so the next stage sleeps until
+//! its input arrives, and an event for every other listener.
 
-use crate::IpcError;
-use crate::msg::{FrameHeader, ResultMsg, StageId};
+use crate::error::{NodeError, OpenError, ReceiveError, SendError, WaitError};
 use crate::wake::WakeWord;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -12,82 +12,77 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use std::cell::Cell;
-use std::collections::VecDeque;
 use std::fmt::Debug;
 use std::time::Duration;
 
 /// The iceoryx2 service flavour (inter-process, ports stay on one thread).
 pub type Svc = ipc::Service;
 
-/// A received frame: header + pixels, borrowed from shared memory.
-pub type FrameSample = Sample<Svc, [u8], FrameHeader>;
-/// A received stage result: header + the stage's payload (mask, response).
-pub type ResultSample = Sample<Svc, [u8], ResultMsg>;
+/// What a stream's user header must be: plain data that lives in shared
+/// memory as it is.
+pub trait Header: Debug + ZeroCopySend + Copy + Default + 'static {}
+impl<T: Debug + ZeroCopySend + Copy + Default + 'static> Header for T {}
 
-/// Sizes of the services (shared memory is sized from them up front).
-#[derive(Clone, Copy, Debug)]
-pub struct Qos {
-    /// Frames a stage keeps to look pixels up by sequence.
-    pub frame_history: usize,
-    /// Largest frame payload, bytes.
-    pub max_frame_bytes: usize,
+/// A received sample: header + payload, borrowed from shared memory.
+pub type Received<H> = Sample<Svc, [u8], H>;
+
+/// A publish-subscribe service of `[u8]` payloads with header `H`.
+type PubSub<H> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], H>;
+
+/// The shape of one stream's service. Shared memory is sized from it up
+/// front, and every process of a run must open a stream with the same
+/// shape (iceoryx2 refuses another).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamSpec {
+    /// The stream's name inside the run ("frames", "recognition", ...).
+    pub name: &'static str,
+    /// Subscribers it admits.
+    pub subscribers: usize,
+    /// Samples queued per subscriber; when full, the oldest is dropped.
+    pub buffer: usize,
+    /// Samples one subscriber may hold at once.
+    pub borrowed: usize,
 }
 
-/// Subscribers of the frame service: recognition, segmentation, pose, the
-/// viewer and the recorder.
-const FRAME_SUBSCRIBERS: usize = 5;
-/// Subscribers of a result service: the next stage, the launcher, the
-/// viewer and the recorder.
-const RESULT_SUBSCRIBERS: usize = 4;
-/// Result samples queued per subscriber before the oldest is dropped.
-const RESULT_BUFFER: usize = 8;
+/// How an [`Input`] sleeps until its stream publishes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wake {
+    /// On the stream's wake-up word: the next stage, whose wake-up is on
+    /// the critical path ([`crate::wake`]).
+    Word,
+    /// On the stream's iceoryx2 event: the launcher and the observers.
+    Event,
+    /// Not at all: the caller polls (it sleeps on another input).
+    Never,
+}
 
-/// Names of the services of one run; `instance` keeps concurrent runs apart.
-#[derive(Clone, Debug)]
-pub struct Names {
+/// One process's handle on iceoryx2 for the streams of run `instance`.
+pub struct Ipc {
+    node: Node<Svc>,
     instance: String,
 }
 
-impl Names {
-    /// Services of run `instance` (the launcher's pid).
-    pub fn new(instance: &str) -> Self {
-        Names {
-            instance: instance.to_owned(),
-        }
-    }
-
-    fn name(&self, what: &str) -> Result<ServiceName, IpcError> {
-        let s = format!("acch/{}/{what}", self.instance);
-        ServiceName::new(&s).map_err(|e| IpcError::Iceoryx(format!("service name {s}: {e:?}")))
-    }
-}
-
-fn err<E: Debug>(what: &str) -> impl FnOnce(E) -> IpcError + '_ {
-    move |e| IpcError::Iceoryx(format!("{what}: {e:?}"))
-}
-
-fn wake_error(word: &WakeWord, source: std::io::Error) -> IpcError {
-    IpcError::Wake {
-        path: word.path().to_owned(),
-        source,
-    }
-}
-
-/// One process's handle on iceoryx2.
-pub struct Ipc {
-    node: Node<Svc>,
-    names: Names,
-    qos: Qos,
-}
-
 impl Ipc {
-    /// Creates this process's node.
-    pub fn new(names: Names, node_name: &str, qos: Qos) -> Result<Self, IpcError> {
+    /// Creates this process's node for run `instance` (the launcher's pid:
+    /// it keeps concurrent runs apart).
+    pub fn new(instance: &str, node_name: &str) -> Result<Self, NodeError> {
+        let name = NodeName::new(node_name).map_err(|_| NodeError::Name(node_name.to_owned()))?;
         let node = NodeBuilder::new()
-            .name(&NodeName::new(node_name).map_err(err("node name"))?)
+            .name(&name)
             .create::<Svc>()
-            .map_err(err("creating the node"))?;
-        Ok(Ipc { node, names, qos })
+            .map_err(|source| NodeError::Create {
+                node: node_name.to_owned(),
+                source,
+            })?;
+        Ok(Ipc {
+            node,
+            instance: instance.to_owned(),
+        })
+    }
+
+    /// The run this node belongs to.
+    pub fn instance(&self) -> &str {
+        &self.instance
     }
 
     /// False once the process was asked to terminate (SIGINT, SIGTERM).
@@ -97,212 +92,169 @@ impl Ipc {
         !iceoryx2_bb_posix::signal::SignalHandler::termination_requested()
     }
 
-    fn frame_service(
-        &self,
-    ) -> Result<
-        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], FrameHeader>,
-        IpcError,
-    > {
-        let h = self.qos.frame_history.max(1);
-        self.node
-            .service_builder(&self.names.name("frames")?)
-            .publish_subscribe::<[u8]>()
-            .user_header::<FrameHeader>()
-            .enable_safe_overflow(true)
-            .history_size(0)
-            .subscriber_max_buffer_size(h)
-            .subscriber_max_borrowed_samples(h + 1)
-            .max_subscribers(FRAME_SUBSCRIBERS)
-            .max_publishers(1)
-            .open_or_create()
-            .map_err(err("frame service"))
+    fn service_name(&self, what: &str) -> Result<(String, ServiceName), OpenError> {
+        let name = format!("acch/{}/{what}", self.instance);
+        let service = ServiceName::new(&name).map_err(|source| OpenError::Name {
+            name: name.clone(),
+            source,
+        })?;
+        Ok((name, service))
     }
 
-    fn result_service(
-        &self,
-        stage: StageId,
-    ) -> Result<
-        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [u8], ResultMsg>,
-        IpcError,
-    > {
-        self.node
-            .service_builder(&self.names.name(stage.name())?)
+    fn service<H: Header>(&self, spec: StreamSpec) -> Result<(String, PubSub<H>), OpenError> {
+        let (name, service) = self.service_name(spec.name)?;
+        let factory = self
+            .node
+            .service_builder(&service)
             .publish_subscribe::<[u8]>()
-            .user_header::<ResultMsg>()
+            .user_header::<H>()
             .enable_safe_overflow(true)
             .history_size(0)
-            .subscriber_max_buffer_size(RESULT_BUFFER)
-            .subscriber_max_borrowed_samples(2)
-            .max_subscribers(RESULT_SUBSCRIBERS)
+            .subscriber_max_buffer_size(spec.buffer.max(1))
+            .subscriber_max_borrowed_samples(spec.borrowed.max(1))
+            .max_subscribers(spec.subscribers.max(1))
             .max_publishers(1)
             .open_or_create()
-            .map_err(err("result service"))
+            .map_err(|source| OpenError::Service {
+                service: name.clone(),
+                source,
+            })?;
+        Ok((name, factory))
     }
 
     fn event(
         &self,
         what: &str,
-    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
-        self.node
-            .service_builder(&self.names.name(&format!("{what}/event"))?)
+    ) -> Result<
+        (
+            String,
+            iceoryx2::service::port_factory::event::PortFactory<Svc>,
+        ),
+        OpenError,
+    > {
+        let (name, service) = self.service_name(&format!("{what}/event"))?;
+        let factory = self
+            .node
+            .service_builder(&service)
             .event()
             .max_listeners(8)
             .max_notifiers(8)
             .open_or_create()
-            .map_err(err("event service"))
+            .map_err(|source| OpenError::Event {
+                service: name.clone(),
+                source,
+            })?;
+        Ok((name, factory))
     }
 
-    /// Stream `what`'s wake-up word ([`crate::wake`]), which the next
-    /// stage sleeps on.
-    fn wake_word(&self, what: &str) -> Result<WakeWord, IpcError> {
-        WakeWord::open(&self.names.instance, what).map_err(|source| IpcError::Wake {
-            path: crate::wake::path(&self.names.instance, what),
+    fn wake_word(&self, what: &str) -> Result<WakeWord, OpenError> {
+        WakeWord::open(&self.instance, what).map_err(|source| OpenError::Wake {
+            path: crate::wake::path(&self.instance, what),
             source,
         })
     }
 
-    /// The frame publisher (capture).
-    pub fn frame_output(&self) -> Result<Output<FrameHeader>, IpcError> {
-        let publisher = self
-            .frame_service()?
-            .publisher_builder()
-            .initial_max_slice_len(self.qos.max_frame_bytes)
-            .max_loaned_samples(1)
-            .create()
-            .map_err(err("frame publisher"))?;
-        let notifier = self
-            .event("frames")?
-            .notifier_builder()
-            .create()
-            .map_err(err("frame notifier"))?;
-        Ok(Output {
-            publisher,
-            wake: self.wake_word("frames")?,
-            notifier,
-        })
-    }
-
-    /// The first stage's frame subscriber: sleeps on the frames' wake-up
-    /// word ([`Input::wait`]).
-    pub fn frame_stage_input(&self) -> Result<Input<FrameHeader>, IpcError> {
-        let mut input = self.frame_input(false)?;
-        input.wake = Some(self.wake_word("frames")?);
-        Ok(input)
-    }
-
-    /// A frame subscriber; `wake` = also listen for the frame event.
-    pub fn frame_input(&self, wake: bool) -> Result<Input<FrameHeader>, IpcError> {
-        let subscriber = self
-            .frame_service()?
-            .subscriber_builder()
-            .create()
-            .map_err(err("frame subscriber"))?;
-        let listener = if wake {
-            Some(
-                self.event("frames")?
-                    .listener_builder()
-                    .create()
-                    .map_err(err("frame listener"))?,
-            )
-        } else {
-            None
-        };
-        Ok(Input {
-            subscriber,
-            listener,
-            wake: None,
-            seen: Cell::new(0),
-        })
-    }
-
-    /// The result publisher of `stage`, payloads up to `max_payload` bytes.
-    pub fn result_output(
+    /// The publisher of stream `spec`, payloads up to `max_payload` bytes.
+    pub fn output<H: Header>(
         &self,
-        stage: StageId,
+        spec: StreamSpec,
         max_payload: usize,
-    ) -> Result<Output<ResultMsg>, IpcError> {
-        let publisher = self
-            .result_service(stage)?
+    ) -> Result<Output<H>, OpenError> {
+        let (service, factory) = self.service::<H>(spec)?;
+        let publisher = factory
             .publisher_builder()
             .initial_max_slice_len(max_payload.max(1))
             .max_loaned_samples(1)
             .create()
-            .map_err(err("result publisher"))?;
-        let notifier = self
-            .event(stage.name())?
+            .map_err(|source| OpenError::Publisher {
+                service: service.clone(),
+                source,
+            })?;
+        let (_, event) = self.event(spec.name)?;
+        let notifier = event
             .notifier_builder()
             .create()
-            .map_err(err("result notifier"))?;
+            .map_err(|source| OpenError::Notifier {
+                service: service.clone(),
+                source,
+            })?;
         Ok(Output {
             publisher,
-            wake: self.wake_word(stage.name())?,
+            wake: self.wake_word(spec.name)?,
             notifier,
+            service,
         })
     }
 
-    /// The next stage's subscriber to `stage`'s results: sleeps on the
-    /// stream's wake-up word ([`Input::wait`]).
-    pub fn result_stage_input(&self, stage: StageId) -> Result<Input<ResultMsg>, IpcError> {
-        let subscriber = self
-            .result_service(stage)?
-            .subscriber_builder()
-            .create()
-            .map_err(err("result subscriber"))?;
-        Ok(Input {
-            subscriber,
-            listener: None,
-            wake: Some(self.wake_word(stage.name())?),
-            seen: Cell::new(0),
-        })
-    }
-
-    /// A subscriber to `stage`'s results that sleeps on its event.
-    pub fn result_input(&self, stage: StageId) -> Result<Input<ResultMsg>, IpcError> {
-        let subscriber = self
-            .result_service(stage)?
-            .subscriber_builder()
-            .create()
-            .map_err(err("result subscriber"))?;
-        let listener = Some(
-            self.event(stage.name())?
-                .listener_builder()
+    /// A subscriber of stream `spec` that sleeps as `wake` says.
+    pub fn input<H: Header>(&self, spec: StreamSpec, wake: Wake) -> Result<Input<H>, OpenError> {
+        let (service, factory) = self.service::<H>(spec)?;
+        let subscriber =
+            factory
+                .subscriber_builder()
                 .create()
-                .map_err(err("result listener"))?,
-        );
+                .map_err(|source| OpenError::Subscriber {
+                    service: service.clone(),
+                    source,
+                })?;
+        let (word, listener) = match wake {
+            Wake::Word => (Some(self.wake_word(spec.name)?), None),
+            Wake::Event => (None, Some(self.listener(spec.name, &service)?)),
+            Wake::Never => (None, None),
+        };
         Ok(Input {
             subscriber,
             listener,
-            wake: None,
+            wake: word,
             seen: Cell::new(0),
+            service,
         })
     }
 
+    fn listener(&self, what: &str, service: &str) -> Result<Listener<Svc>, OpenError> {
+        let (_, event) = self.event(what)?;
+        event
+            .listener_builder()
+            .create()
+            .map_err(|source| OpenError::Listener {
+                service: service.to_owned(),
+                source,
+            })
+    }
+
     /// Notifier of the control event `what` ("ready", "start").
-    pub fn control_notifier(&self, what: &str) -> Result<Notifier<Svc>, IpcError> {
-        self.event(what)?
+    pub fn control_notifier(&self, what: &str) -> Result<Control, OpenError> {
+        let (service, event) = self.event(what)?;
+        let notifier = event
             .notifier_builder()
             .create()
-            .map_err(err("control notifier"))
+            .map_err(|source| OpenError::Notifier {
+                service: service.clone(),
+                source,
+            })?;
+        Ok(Control { notifier, service })
     }
 
     /// Listener of the control event `what`.
-    pub fn control_listener(&self, what: &str) -> Result<Listener<Svc>, IpcError> {
-        self.event(what)?
-            .listener_builder()
-            .create()
-            .map_err(err("control listener"))
+    pub fn control_listener(&self, what: &str) -> Result<ControlListener, OpenError> {
+        let (service, _) = self.event(what)?;
+        Ok(ControlListener {
+            listener: self.listener(what, &service)?,
+            service,
+        })
     }
 }
 
 /// Publishes a header + `[u8]` payload and wakes the consumers: the next
 /// stage first, on its wake-up word, then everyone else.
-pub struct Output<H: Debug + ZeroCopySend + 'static> {
+pub struct Output<H: Header> {
     publisher: Publisher<Svc, [u8], H>,
     wake: WakeWord,
     notifier: Notifier<Svc>,
+    service: String,
 }
 
-impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
+impl<H: Header> Output<H> {
     /// Loans `payload.len()` bytes of shared memory, copies `payload` in
     /// (the one write of these bytes), lets `fill` set the header (given the
     /// payload's address in this process), sends and notifies. Returns the
@@ -311,11 +263,8 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         &self,
         payload: &[u8],
         fill: impl FnOnce(&mut H, usize),
-    ) -> Result<usize, IpcError> {
-        let mut sample = self
-            .publisher
-            .loan_slice_uninit(payload.len())
-            .map_err(err("loan"))?;
+    ) -> Result<usize, SendError> {
+        let mut sample = self.loan(payload.len())?;
         let dst = sample.payload_mut();
         let addr = dst.as_ptr() as usize;
         // SAFETY: dst has exactly payload.len() bytes; u8 has no invalid values.
@@ -329,25 +278,20 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         // SAFETY: every byte was written above.
         let mut sample = unsafe { sample.assume_init() };
         fill(sample.user_header_mut(), addr);
-        let n = sample.send().map_err(err("send"))?;
-        self.wake
-            .post()
-            .map_err(|source| wake_error(&self.wake, source))?;
-        self.notifier.notify().map_err(err("notify"))?;
-        Ok(n)
+        self.deliver(sample)
     }
 
     /// Loans `len` bytes of shared memory and lets `write` produce the
     /// payload and the header right there (no staging buffer, no copy),
     /// then sends and notifies. Bytes `write` leaves alone keep what an
     /// earlier sample in the same slot held. Returns the number of
-    /// subscribers reached.
-    pub fn send_in_place(
+    /// subscribers reached, or `write`'s error (nothing is sent then).
+    pub fn send_in_place<E>(
         &self,
         len: usize,
-        write: impl FnOnce(&mut [u8], &mut H),
-    ) -> Result<usize, IpcError> {
-        let mut sample = self.publisher.loan_slice_uninit(len).map_err(err("loan"))?;
+        write: impl FnOnce(&mut [u8], &mut H) -> Result<(), E>,
+    ) -> Result<Result<usize, E>, SendError> {
+        let mut sample = self.loan(len)?;
         let dst = sample.payload_mut();
         // SAFETY: the slot lies in a shared-memory segment the kernel
         // zero-filled when it was mapped, so each of its bytes holds either
@@ -356,22 +300,54 @@ impl<H: Debug + ZeroCopySend + Copy + Default + 'static> Output<H> {
         // only because its API is generic over payload types.
         let bytes = unsafe { std::slice::from_raw_parts_mut(dst.as_mut_ptr().cast::<u8>(), len) };
         let mut header = H::default();
-        write(bytes, &mut header);
+        if let Err(e) = write(bytes, &mut header) {
+            return Ok(Err(e));
+        }
         // SAFETY: as above, every byte is initialised.
         let mut sample = unsafe { sample.assume_init() };
         *sample.user_header_mut() = header;
-        let n = sample.send().map_err(err("send"))?;
-        self.wake
-            .post()
-            .map_err(|source| wake_error(&self.wake, source))?;
-        self.notifier.notify().map_err(err("notify"))?;
+        self.deliver(sample).map(Ok)
+    }
+
+    fn loan(
+        &self,
+        len: usize,
+    ) -> Result<
+        iceoryx2::sample_mut_uninit::SampleMutUninit<Svc, [std::mem::MaybeUninit<u8>], H>,
+        SendError,
+    > {
+        self.publisher
+            .loan_slice_uninit(len)
+            .map_err(|source| SendError::Loan {
+                service: self.service.clone(),
+                len,
+                source,
+            })
+    }
+
+    fn deliver(
+        &self,
+        sample: iceoryx2::sample_mut::SampleMut<Svc, [u8], H>,
+    ) -> Result<usize, SendError> {
+        let n = sample.send().map_err(|source| SendError::Send {
+            service: self.service.clone(),
+            source,
+        })?;
+        self.wake.post().map_err(|source| SendError::Wake {
+            path: self.wake.path().to_owned(),
+            source,
+        })?;
+        self.notifier.notify().map_err(|source| SendError::Notify {
+            service: self.service.clone(),
+            source,
+        })?;
         Ok(n)
     }
 }
 
-/// Receives header + payload samples; sleeps on the stream's wake-up word
-/// (a stage's input) or its event (everyone else) when it has one.
-pub struct Input<H: Debug + ZeroCopySend + 'static> {
+/// Receives header + payload samples of one stream; sleeps on its wake-up
+/// word (a stage's input) or its event (everyone else).
+pub struct Input<H: Header> {
     subscriber: Subscriber<Svc, [u8], H>,
     listener: Option<Listener<Svc>>,
     /// A stage's input: its wake-up word.
@@ -380,88 +356,93 @@ pub struct Input<H: Debug + ZeroCopySend + 'static> {
     /// publish after that look has moved it, so the next wait returns at
     /// once instead of sleeping through it.
     seen: Cell<u32>,
+    service: String,
 }
 
-impl<H: Debug + ZeroCopySend + 'static> Input<H> {
+impl<H: Header> Input<H> {
     /// Sleeps until the upstream publishes (the wake-up word moves on from
     /// what it read before the last [`receive`](Self::receive)), its event
     /// fires, a signal arrives or `timeout` passes (so the caller can check
-    /// whether to stop). Drains the pending events.
-    pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+    /// whether to stop). Drains the pending events. Returns at once for a
+    /// [`Wake::Never`] input.
+    pub fn wait(&self, timeout: Duration) -> Result<(), WaitError> {
         if let Some(w) = &self.wake {
             return w
                 .wait(self.seen.get(), timeout)
-                .map_err(|source| wake_error(w, source));
+                .map_err(|source| WaitError::Wake {
+                    path: w.path().to_owned(),
+                    source,
+                });
         }
         if let Some(l) = &self.listener {
             match l.timed_wait(|_| {}, timeout) {
                 // A termination request: the caller sees it in `keep_running`.
                 Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => {}
-                Err(e) => return Err(err("wait")(e)),
+                Err(source) => {
+                    return Err(WaitError::Listener {
+                        service: self.service.clone(),
+                        source,
+                    });
+                }
             }
         }
         Ok(())
     }
 
     /// The next queued sample, if any.
-    pub fn receive(&self) -> Result<Option<Sample<Svc, [u8], H>>, IpcError> {
+    pub fn receive(&self) -> Result<Option<Received<H>>, ReceiveError> {
         if let Some(w) = &self.wake {
             // Read before looking: see `seen`.
             self.seen.set(w.current());
         }
-        self.subscriber.receive().map_err(err("receive"))
+        self.subscriber.receive().map_err(|source| ReceiveError {
+            service: self.service.clone(),
+            source,
+        })
     }
 }
 
-/// The last frames received, so a stage can read the pixels of frame N when
-/// its upstream result for N arrives. Holds the samples themselves (shared
-/// memory, no copy); the oldest is released when a newer one comes in.
-pub struct FrameHistory {
-    frames: VecDeque<FrameSample>,
-    capacity: usize,
-    /// Frames released without having been looked up.
-    pub dropped: u64,
+/// A control event's notifier ("ready", "start").
+pub struct Control {
+    notifier: Notifier<Svc>,
+    service: String,
 }
 
-impl FrameHistory {
-    /// Up to `capacity` frames (the frame service's borrow limit is one more).
-    pub fn new(capacity: usize) -> Self {
-        FrameHistory {
-            frames: VecDeque::with_capacity(capacity.max(1)),
-            capacity: capacity.max(1),
-            dropped: 0,
-        }
+impl Control {
+    /// Fires the event with id `id` (a stage's readiness names the stage).
+    pub fn notify(&self, id: usize) -> Result<(), SendError> {
+        self.notifier
+            .notify_with_custom_event_id(EventId::new(id))
+            .map(|_| ())
+            .map_err(|source| SendError::Notify {
+                service: self.service.clone(),
+                source,
+            })
     }
+}
 
-    /// Moves every queued frame of `input` into the history.
-    pub fn pull(&mut self, input: &Input<FrameHeader>) -> Result<(), IpcError> {
-        while let Some(s) = input.receive()? {
-            if self.frames.len() == self.capacity {
-                self.frames.pop_front();
-                self.dropped += 1;
-            }
-            self.frames.push_back(s);
-        }
-        Ok(())
-    }
+/// A control event's listener.
+pub struct ControlListener {
+    listener: Listener<Svc>,
+    service: String,
+}
 
-    /// Frame `sequence`, pulling newly arrived frames first; releases older frames.
-    pub fn get(
-        &mut self,
-        input: &Input<FrameHeader>,
-        sequence: u64,
-    ) -> Result<Option<&FrameSample>, IpcError> {
-        self.pull(input)?;
-        while self
-            .frames
-            .front()
-            .is_some_and(|f| f.user_header().sequence < sequence)
-        {
-            self.frames.pop_front();
+impl ControlListener {
+    /// Calls `f` with the id of every event fired until now, waiting up to
+    /// `timeout` for the first (`Duration::ZERO`: not at all). A signal
+    /// ends the wait early (the caller sees it in [`Ipc::keep_running`]).
+    pub fn take(&self, timeout: Duration, mut f: impl FnMut(usize)) -> Result<(), WaitError> {
+        let r = if timeout.is_zero() {
+            self.listener.try_wait(|e| f(e.id.as_value()))
+        } else {
+            self.listener.timed_wait(|e| f(e.id.as_value()), timeout)
+        };
+        match r {
+            Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
+            Err(source) => Err(WaitError::Listener {
+                service: self.service.clone(),
+                source,
+            }),
         }
-        Ok(self
-            .frames
-            .front()
-            .filter(|f| f.user_header().sequence == sequence))
     }
 }

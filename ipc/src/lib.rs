@@ -1,44 +1,44 @@
-//! Inter-process plumbing of the acch pipeline: iceoryx2 services for frames
-//! (`[u8]` pixels + a `#[repr(C)]` [`FrameHeader`]) and for each stage's
-//! result ([`ResultMsg`], keyed by sequence), events so that every stage
-//! sleeps until its input arrives, the timing trail, the frame history a
-//! stage keeps to read the pixels of frame N, shared-memory location checks
-//! that show frames are never copied, and zenoh publishing.
+//! Inter-process plumbing of the acch pipeline: iceoryx2 streams of a
+//! `[u8]` payload with a typed `#[repr(C)]` header ([`Output`], [`Input`];
+//! the header types are the pipeline's, defined beside the stage that
+//! writes them), the stages' futex wake-ups ([`wake`]), CPU placement and
+//! scheduling ([`sched`]), shared-memory location checks that show frames
+//! are never copied ([`ShmLocator`]), the clock of every timing trail
+//! ([`now_ns`]) and zenoh sessions ([`zenoh_io`]).
 //!
-//! No algorithm lives here; the stage crates never import this one.
+//! No algorithm lives here, and nothing here knows what a stage computes.
 
 pub mod channel;
-pub mod msg;
+pub mod error;
 pub mod sched;
 pub mod shm;
 pub mod wake;
 pub mod zenoh_io;
 
-pub use channel::{FrameHistory, FrameSample, Input, Ipc, Names, Output, Qos, ResultSample, Svc};
-pub use msg::{
-    ArmPose, FrameHeader, Fused, Observer, ResultMsg, STAGES, StageId, StageTimes, Trail, Truth,
-    now_ns, pixel_format,
+pub use channel::{
+    Control, ControlListener, Header, Input, Ipc, Output, Received, StreamSpec, Svc, Wake,
 };
+pub use error::{IpcError, NodeError, OpenError, ReceiveError, SendError, WaitError, ZenohError};
+pub use iceoryx2::prelude::ZeroCopySend;
 pub use shm::ShmLocator;
-pub use zenoh_io::{SeedPublisher, ZenohConfig, open_session};
+pub use zenoh_io::{Publisher, ZenohConfig, open_session};
 
-/// Errors of the IPC layer.
-#[derive(Debug, thiserror::Error)]
-pub enum IpcError {
-    /// An iceoryx2 call failed.
-    #[error("iceoryx2: {0}")]
-    Iceoryx(String),
-    /// A zenoh call failed.
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    /// A stream's wake-up word could not be opened, posted or waited on.
-    #[error("wake-up word {}: {source}", path.display())]
-    Wake {
-        /// Its file.
-        path: std::path::PathBuf,
-        /// What the system said.
-        source: std::io::Error,
-    },
+/// CLOCK_MONOTONIC now, nanoseconds (the clock of every timing trail).
+pub fn now_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes into the timespec we own.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// Sets iceoryx2's log level from `IOX2_LOG_LEVEL`, or to errors only:
+/// it warns in every process that it runs on its default configuration,
+/// which is intended.
+pub fn quiet_iceoryx2_logs() {
+    iceoryx2::prelude::set_log_level_from_env_or(iceoryx2::prelude::LogLevel::Error);
 }
 
 /// Removes the shared-memory resources of dead iceoryx2 nodes (a crashed
@@ -64,18 +64,31 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
+    /// A header as a pipeline stream would carry.
+    #[repr(C)]
+    #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+    struct TestHeader {
+        sequence: u64,
+        location: [u64; 2],
+        published_ns: u64,
+    }
+
+    const FRAMES: StreamSpec = StreamSpec {
+        name: "frames",
+        subscribers: 2,
+        buffer: 2,
+        borrowed: 3,
+    };
+
     #[test]
     fn a_frame_crosses_threads_in_place_and_wakes_the_subscriber() {
-        let names = Names::new(&format!("test-{}", std::process::id()));
-        let qos = Qos {
-            frame_history: 2,
-            max_frame_bytes: 64 * 48 * 3,
-        };
+        let instance = format!("test-{}", std::process::id());
+        let bytes = 64 * 48 * 3;
         let (tx, rx) = std::sync::mpsc::channel();
-        let names2 = names.clone();
+        let instance2 = instance.clone();
         let reader = std::thread::spawn(move || {
-            let ipc = Ipc::new(names2, "reader", qos).unwrap();
-            let input = ipc.frame_input(true).unwrap();
+            let ipc = Ipc::new(&instance2, "reader").unwrap();
+            let input = ipc.input::<TestHeader>(FRAMES, Wake::Word).unwrap();
             tx.send(()).unwrap();
             let mut loc = ShmLocator::new();
             for _ in 0..50 {
@@ -89,20 +102,16 @@ mod tests {
             panic!("no frame arrived");
         });
         rx.recv_timeout(Duration::from_secs(10)).unwrap();
-        let ipc = Ipc::new(names, "writer", qos).unwrap();
-        let out = ipc.frame_output().unwrap();
-        let pixels: Vec<u8> = (0..qos.max_frame_bytes).map(|i| i as u8).collect();
+        let ipc = Ipc::new(&instance, "writer").unwrap();
+        let out = ipc.output::<TestHeader>(FRAMES, bytes).unwrap();
+        let pixels: Vec<u8> = (0..bytes).map(|i| i as u8).collect();
         let mut loc = ShmLocator::new();
         let mut written = (0, 0);
-        out.send(&pixels, |h: &mut FrameHeader, addr| {
+        out.send(&pixels, |h, addr| {
             written = loc.locate(addr).unwrap();
             h.sequence = 7;
-            h.width = 64;
-            h.height = 48;
-            h.stride = 64 * 3;
-            h.pixel_format = pixel_format::RGB8;
-            (h.shm_file, h.shm_offset) = written;
-            h.trail.stages[0].published_ns = now_ns();
+            h.location = [written.0, written.1];
+            h.published_ns = now_ns();
         })
         .unwrap();
         let (h, first, here, woke) = reader.join().unwrap();
@@ -110,17 +119,40 @@ mod tests {
         assert_eq!(first, vec![0, 1, 2, 3]);
         // Same shared-memory file and offset in both: no copy.
         assert_eq!(here, written);
-        assert_eq!(here, (h.shm_file, h.shm_offset));
-        assert!(woke >= h.trail.stages[0].published_ns);
-        wake::remove_run(&format!("test-{}", std::process::id()));
+        assert_eq!([here.0, here.1], h.location);
+        assert!(woke >= h.published_ns);
+        wake::remove_run(&instance);
     }
 
     #[test]
-    fn stage_names_round_trip() {
-        for s in StageId::ALL {
-            assert_eq!(StageId::from_name(s.name()), Some(s));
-        }
-        assert_eq!(StageId::Pose.upstream(), Some(StageId::Segmentation));
-        assert_eq!(StageId::Capture.upstream(), None);
+    fn a_payload_larger_than_the_service_is_a_typed_loan_error_naming_the_stream() {
+        let instance = format!("test-loan-{}", std::process::id());
+        let ipc = Ipc::new(&instance, "writer").unwrap();
+        let out = ipc.output::<TestHeader>(FRAMES, 16).unwrap();
+        let err = out.send(&[0u8; 4096], |_, _| {}).unwrap_err();
+        assert!(matches!(err, SendError::Loan { len: 4096, .. }), "{err:?}");
+        assert!(err.to_string().contains("frames"), "{err}");
+        wake::remove_run(&instance);
+    }
+
+    #[test]
+    fn a_write_that_fails_sends_nothing() {
+        let instance = format!("test-fail-{}", std::process::id());
+        let ipc = Ipc::new(&instance, "both").unwrap();
+        let input = ipc.input::<TestHeader>(FRAMES, Wake::Never).unwrap();
+        let out = ipc.output::<TestHeader>(FRAMES, 16).unwrap();
+        let r = out.send_in_place(8, |_, _| Err::<(), _>("no")).unwrap();
+        assert_eq!(r, Err("no"));
+        assert!(input.receive().unwrap().is_none());
+        assert_eq!(
+            out.send_in_place(8, |_, h| {
+                h.sequence = 3;
+                Ok::<(), ()>(())
+            })
+            .unwrap(),
+            Ok(1)
+        );
+        assert_eq!(input.receive().unwrap().unwrap().user_header().sequence, 3);
+        wake::remove_run(&instance);
     }
 }

@@ -1,7 +1,7 @@
 //! zenoh: peer mode, loopback by default, no scouting; the seed and the
 //! result of every frame leave the machine here.
 
-use crate::IpcError;
+use crate::error::ZenohError;
 use serde::{Deserialize, Serialize};
 
 /// Where zenoh listens and whom it connects to.
@@ -27,13 +27,16 @@ impl Default for ZenohConfig {
     }
 }
 
-fn zerr<E: std::fmt::Display>(what: &'static str) -> impl FnOnce(E) -> IpcError {
-    move |e| IpcError::Zenoh(format!("{what}: {e}"))
+fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> ZenohError {
+    move |source| ZenohError {
+        what: what.into(),
+        source,
+    }
 }
 
 /// Opens a peer session on `listen` / `connect` with multicast and gossip
 /// scouting off.
-pub fn open_session(listen: &[String], connect: &[String]) -> Result<zenoh::Session, IpcError> {
+pub fn open_session(listen: &[String], connect: &[String]) -> Result<zenoh::Session, ZenohError> {
     use zenoh::Wait;
     let mut c = zenoh::Config::default();
     let json = |v: &[String]| serde_json::to_string(v).unwrap_or_else(|_| "[]".into());
@@ -44,51 +47,45 @@ pub fn open_session(listen: &[String], connect: &[String]) -> Result<zenoh::Sess
         ("listen/endpoints", json(listen)),
         ("connect/endpoints", json(connect)),
     ] {
-        c.insert_json5(k, &v).map_err(zerr("zenoh configuration"))?;
+        c.insert_json5(k, &v)
+            .map_err(zerr(format!("configuration {k} = {v}")))?;
     }
     zenoh::open(c)
         .wait()
-        .map_err(zerr("opening the zenoh session (is the port in use?)"))
+        .map_err(zerr("opening the session (is the port in use?)"))
 }
 
-/// The publishers of one object's seeds and results.
-pub struct SeedPublisher {
-    session: zenoh::Session,
-    seed_key: String,
-    result_key: String,
+/// A publisher declared once on one key.
+pub struct Publisher {
+    publisher: zenoh::pubsub::Publisher<'static>,
+    key: String,
 }
 
-impl SeedPublisher {
-    /// Opens the session of `config` for `object`.
-    pub fn new(config: &ZenohConfig, object: &str) -> Result<Self, IpcError> {
-        let session = open_session(&config.listen, &config.connect)?;
-        Ok(SeedPublisher {
-            session,
-            seed_key: format!("{}/{object}/seed", config.prefix),
-            result_key: format!("{}/{object}/result", config.prefix),
+impl Publisher {
+    /// Declares a publisher on `key` in `session`.
+    pub fn declare(session: &zenoh::Session, key: &str) -> Result<Self, ZenohError> {
+        use zenoh::Wait;
+        let publisher = session
+            .declare_publisher(key.to_owned())
+            .wait()
+            .map_err(zerr(format!("declaring a publisher on {key}")))?;
+        Ok(Publisher {
+            publisher,
+            key: key.to_owned(),
         })
     }
 
-    /// The seed key expression.
-    pub fn seed_key(&self) -> &str {
-        &self.seed_key
+    /// Its key expression.
+    pub fn key(&self) -> &str {
+        &self.key
     }
 
-    /// Publishes a seed (JSON).
-    pub fn put_seed(&self, json: Vec<u8>) -> Result<(), IpcError> {
+    /// Publishes `bytes` (zenoh takes its own copy).
+    pub fn put(&self, bytes: &[u8]) -> Result<(), ZenohError> {
         use zenoh::Wait;
-        self.session
-            .put(&self.seed_key, json)
+        self.publisher
+            .put(bytes)
             .wait()
-            .map_err(zerr("publishing the seed"))
-    }
-
-    /// Publishes a per-frame result (JSON).
-    pub fn put_result(&self, json: Vec<u8>) -> Result<(), IpcError> {
-        use zenoh::Wait;
-        self.session
-            .put(&self.result_key, json)
-            .wait()
-            .map_err(zerr("publishing the result"))
+            .map_err(zerr(format!("publishing on {}", self.key)))
     }
 }

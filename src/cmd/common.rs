@@ -1,13 +1,11 @@
-//! Pieces shared by several subcommands: choosing an object, histogram
-//! options, rendering view sets in parallel with a progress bar.
+//! Arguments shared by several subcommands: choosing an object, histogram
+//! options.
 
-use acch_capture::{Background, Object, Rendered, Renderer, SceneConfig, ViewPose};
+use acch_capture::Object;
 use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling};
-use acch_pose::train::{LabelledView, TrainConfig};
+use acch_pose::train::TrainConfig;
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -135,87 +133,4 @@ fn parse_sampling(s: &str) -> Result<OffsetSampling, String> {
             "unknown sampling '{s}' (expected dense or polar:RINGS:ANGLES)"
         )),
     }
-}
-
-/// A progress bar on stderr with a message and a count.
-pub fn progress(len: u64, message: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(message.to_owned());
-    bar
-}
-
-/// Frame seed of view `i` of a set: distinct per view, fixed per set seed.
-pub fn frame_seed(set_seed: u64, i: usize) -> u64 {
-    set_seed
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add(i as u64 + 1)
-}
-
-/// Renders `views` in parallel (rayon), in order, with a progress bar.
-pub fn render_views(
-    renderer: &Renderer,
-    views: &[ViewPose],
-    seed: u64,
-    message: &str,
-) -> Vec<Rendered> {
-    let bar = progress(views.len() as u64, message);
-    let out = views
-        .par_iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let r = renderer.render(v, frame_seed(seed, i));
-            bar.inc(1);
-            r
-        })
-        .collect();
-    bar.finish_and_clear();
-    out
-}
-
-/// A renderer of `object` on `background` with default intrinsics.
-pub fn renderer(object: Arc<Object>, background: Background, scene_seed: u64) -> Renderer {
-    Renderer::new(
-        SceneConfig {
-            object,
-            background,
-            intrinsics: Default::default(),
-            effects: Default::default(),
-        },
-        scene_seed,
-    )
-}
-
-/// A rendered view as training input, with its ground-truth mask.
-pub fn labelled(r: &Rendered, train_distance: f64) -> LabelledView<'_> {
-    LabelledView {
-        rgb: r.image.as_raw(),
-        mask: r.mask.as_raw(),
-        width: r.image.width(),
-        height: r.image.height(),
-        theta_deg: r.truth.theta_deg as f32,
-        phi_deg: r.truth.phi_deg as f32,
-        scale: (train_distance / r.truth.distance) as f32,
-    }
-}
-
-/// Reads an object mask (any image; non-zero luma = object) that must match
-/// its image's size; errors name the file.
-pub fn read_mask(path: &std::path::Path, (w, h): (u32, u32)) -> Result<Vec<u8>> {
-    let mask = image::open(path)
-        .with_context(|| format!("reading mask {}", path.display()))?
-        .to_luma8();
-    if mask.dimensions() != (w, h) {
-        bail!(
-            "{}: mask is {}x{} but its image is {w}x{h}",
-            path.display(),
-            mask.width(),
-            mask.height()
-        );
-    }
-    Ok(mask.into_raw())
 }

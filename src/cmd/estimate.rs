@@ -1,8 +1,11 @@
 //! `acch estimate`: the 2-DOF pose of the object in one image.
 
-use crate::pipeline::{FrameResult, Pipeline};
 use acch_confidence::Model as ConfidenceModel;
 use acch_core::{IndexImage, Rect, ViewDatabase};
+use acch_eval::train::{read_image, read_mask};
+use acch_pipeline::source::sized_intrinsics;
+use acch_pipeline::wire::Intrinsics;
+use acch_pipeline::{Chain, FrameHeader, Seeded, StageSettings};
 use acch_pose::train::mask_bbox;
 use acch_pose::{Estimate, PoseEstimator, Refinement};
 use anyhow::{Context, Result, bail};
@@ -74,9 +77,7 @@ impl Loaded {
 /// `Ok(None)` means the object was not found.
 pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Loaded>> {
     let db = ViewDatabase::load(&input.db)?;
-    let rgb = image::open(&input.image)
-        .with_context(|| format!("reading image {}", input.image.display()))?
-        .to_rgb8();
+    let rgb = read_image(&input.image)?.to_rgb8();
     let (w, h) = rgb.dimensions();
     if let Some(d) = input.distance
         && !(d.is_finite() && d > 0.0)
@@ -85,20 +86,33 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
     }
     let (mask, roi) = match &input.mask {
         Some(mask_path) => {
-            let mask = super::common::read_mask(mask_path, (w, h))?;
+            let mask = read_mask(mask_path, (w, h))?;
             let Some(roi) = mask_bbox(&mask, w, h) else {
                 bail!("{}: the mask is empty", mask_path.display());
             };
             (mask, roi)
         }
         None => {
-            let mut pipeline = Pipeline::new(db.clone(), w, h, input.distance)?;
-            let result = pipeline.process(rgb.as_raw(), w, h);
-            if let Some(dir) = debug_dir {
-                write_debug(dir, &rgb, &pipeline, &result)?;
+            // Recognition and segmentation as deployed; the estimate below
+            // is the pose stage's on the same mask.
+            let settings = StageSettings {
+                width: w,
+                height: h,
+                distance: input.distance.map(f64::from),
+                unrated: true,
+            };
+            let mut chain = Chain::build(&db, &settings)?;
+            let k = Intrinsics::from(&sized_intrinsics(w, h));
+            let result = chain.process(&FrameHeader::rgb(0, w, h, k), rgb.as_raw());
+            let mut mask = Vec::new();
+            if let Some(region) = chain.last_region() {
+                region.frame_mask(w, h, &mut mask);
             }
-            match result.roi {
-                Some(roi) => (pipeline.segmenter().mask().to_vec(), roi),
+            if let Some(dir) = debug_dir {
+                write_debug(dir, &rgb, &chain, &result, &mask)?;
+            }
+            match result.region().done() {
+                Some(roi) => (mask, roi.into()),
                 None => return Ok(None),
             }
         }
@@ -127,8 +141,9 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
 fn write_debug(
     dir: &Path,
     rgb: &RgbImage,
-    pipeline: &Pipeline,
-    result: &FrameResult,
+    chain: &Chain,
+    result: &Seeded,
+    mask: &[u8],
 ) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let (w, h) = rgb.dimensions();
@@ -138,7 +153,7 @@ fn write_debug(
             .with_context(|| format!("writing {}", path.display()))
     };
     // Heat map: each window position's score at its centre cell.
-    let heat = pipeline.detector().heat_map();
+    let heat = chain.stages().recognition.detector().heat_map();
     let max = heat.scores.iter().copied().fold(f32::EPSILON, f32::max);
     let cell = heat.cell_px as i64;
     let half = heat.window_cells as i64 / 2;
@@ -160,16 +175,15 @@ fn write_debug(
     }
     save(&img, "heat.png")?;
     let mut img = rgb.clone();
-    if let Some(d) = &result.detection {
-        draw_rect(&mut img, d.window, Rgb([230, 20, 20]));
+    if let Some(d) = result.detection().done() {
+        draw_rect(&mut img, d.window.into(), Rgb([230, 20, 20]));
     }
-    if let Some(roi) = result.roi {
-        draw_rect(&mut img, roi, Rgb([20, 200, 20]));
+    if let Some(roi) = result.region().done() {
+        draw_rect(&mut img, roi.into(), Rgb([20, 200, 20]));
     }
     save(&img, "window.png")?;
-    let mask = pipeline.segmenter().mask();
     let img = RgbImage::from_fn(w, h, |x, y| {
-        let m = mask[(y * w + x) as usize];
+        let m = mask.get((y * w + x) as usize).copied().unwrap_or(0);
         let p = rgb.get_pixel(x, y).0;
         if m != 0 {
             Rgb(p)
@@ -292,10 +306,10 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         );
     }
     if let Some(path) = &args.plot {
-        let marks: Vec<crate::plot::SliceMark> = est
+        let marks: Vec<acch_viz::plot::SliceMark> = est
             .slices()
             .iter()
-            .map(|s| crate::plot::SliceMark {
+            .map(|s| acch_viz::plot::SliceMark {
                 start: s.start,
                 len: s.len,
                 theta_deg: s.theta_deg,
@@ -308,7 +322,7 @@ pub fn run(args: EstimateArgs) -> Result<()> {
             e.phi_deg,
             e.best_value
         );
-        crate::plot::response_plot(path, &title, est.response(), &marks, e.best_view, None)?;
+        acch_viz::plot::response_plot(path, &title, est.response(), &marks, e.best_view, None)?;
     }
     if let Some(path) = &args.csv {
         let mut s = String::from("view,theta_deg,phi_deg,match\n");

@@ -1,14 +1,12 @@
 //! `acch train`: build a view database from a rendered object or from a
 //! folder of labelled images.
 
-use super::common::{self, HistogramArgs, ObjectArgs};
-use crate::model;
-use acch_capture::{Background, DEFAULT_DISTANCE, ViewSpec, labels};
-use acch_core::ViewDatabase;
-use acch_pose::train::{LabelledView, TrainConfig};
-use anyhow::{Context, Result, bail};
+use super::common::{HistogramArgs, ObjectArgs};
+use acch_capture::{Background, DEFAULT_DISTANCE, ViewSpec};
+use acch_eval::train::{self, RenderedTraining};
+use anyhow::{Result, bail};
 use clap::Args;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `acch train`.
 #[derive(Args)]
@@ -35,7 +33,7 @@ pub struct TrainArgs {
     histogram: HistogramArgs,
     /// Confidence network: random-pose scenes rendered per background (plain,
     /// A, B, C, clutter, clutter-similar) to train it on; 0 leaves it out.
-    #[arg(long, default_value_t = model::DEFAULT_CONFIDENCE_SCENES)]
+    #[arg(long, default_value_t = train::DEFAULT_CONFIDENCE_SCENES)]
     confidence_scenes: usize,
     /// Confidence network input: the four response features, or the whole
     /// response.
@@ -80,17 +78,17 @@ pub fn run(args: TrainArgs) -> Result<()> {
     }
     let start = std::time::Instant::now();
     let db = match &args.images {
-        Some(dir) => train_from_folder(dir, &config)?,
+        Some(dir) => train::train_from_folder(dir, &config)?,
         None => {
             let object = args.object.load()?;
-            let training = model::RenderedTraining {
+            let training = RenderedTraining {
                 views: args.views.clone(),
                 background: args.background,
                 distance: args.distance,
                 seed: args.seed,
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
-            let mut db = model::train_object(&object, &config, &training, confidence)?;
+            let mut db = train::train_object(&object, &config, &training, confidence)?;
             if args.confidence_scenes > 0 {
                 let mut network = acch_confidence::Model::load(&db)?;
                 network.set_threshold(args.confidence_threshold)?;
@@ -111,58 +109,4 @@ pub fn run(args: TrainArgs) -> Result<()> {
         args.out.display()
     );
     Ok(())
-}
-
-/// Trains from `DIR/labels.csv` and the images (and masks) it names. Views
-/// without a mask use their bounding box, or the whole image.
-pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabase> {
-    let rows = labels::read_labels(dir.join("labels.csv"))?;
-    if rows.is_empty() {
-        bail!("{}: no rows", dir.join("labels.csv").display());
-    }
-    let mut distances: Vec<f64> = rows.iter().map(|r| r.distance).collect();
-    distances.sort_by(f64::total_cmp);
-    let train_distance = distances[distances.len() / 2];
-    let bar = common::progress(rows.len() as u64, "loading");
-    let mut images = Vec::with_capacity(rows.len());
-    for row in &rows {
-        let path = dir.join(&row.file);
-        let rgb = image::open(&path)
-            .with_context(|| format!("reading image {}", path.display()))?
-            .to_rgb8();
-        let (w, h) = rgb.dimensions();
-        let mask = match (&row.mask, &row.bbox) {
-            (Some(m), _) => common::read_mask(&dir.join(m), (w, h))?,
-            (None, Some(b)) => {
-                let mut m = vec![0u8; (w * h) as usize];
-                for y in b.y..(b.y + b.height).min(h) {
-                    for x in b.x..(b.x + b.width).min(w) {
-                        m[(y * w + x) as usize] = 255;
-                    }
-                }
-                m
-            }
-            (None, None) => vec![255u8; (w * h) as usize],
-        };
-        images.push((rgb, mask, row));
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let labelled: Vec<LabelledView> = images
-        .iter()
-        .map(|(rgb, mask, row)| LabelledView {
-            rgb: rgb.as_raw(),
-            mask,
-            width: rgb.width(),
-            height: rgb.height(),
-            theta_deg: row.theta_deg as f32,
-            phi_deg: row.phi_deg as f32,
-            scale: (train_distance / row.distance) as f32,
-        })
-        .collect();
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "object".into());
-    model::train_views(&name, train_distance as f32, &labelled, config)
 }

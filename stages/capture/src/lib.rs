@@ -54,6 +54,15 @@ pub use render::{BBox, GroundTruth, Rendered, Renderer, SceneConfig, mask_bbox};
 pub use trajectory::{Frames, Trajectory, TrajectoryFrame};
 pub use views::ViewSpec;
 
+/// Frame seed of view `i` of a set rendered with `set_seed`: distinct per
+/// view, fixed per set seed (the per-frame noise of every protocol and of
+/// the simulated camera).
+pub fn frame_seed(set_seed: u64, i: usize) -> u64 {
+    set_seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(i as u64 + 1)
+}
+
 /// Derives an independent seed for item `index` from a base seed (SplitMix64
 /// finaliser), e.g. the noise seed of view `index` of a dataset.
 pub fn derive_seed(base: u64, index: u64) -> u64 {

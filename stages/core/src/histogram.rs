@@ -166,6 +166,15 @@ impl HistogramParams {
     /// The offsets (dx, dy, geometric bin) at `scale` (1 = training distance),
     /// with y pointing down as in images.
     pub fn offsets(&self, scale: f32) -> Vec<(i32, i32, u16)> {
+        let mut out = Vec::new();
+        self.offsets_into(scale, &mut out);
+        out
+    }
+
+    /// [`offsets`](Self::offsets) into `out` (cleared first): no allocation
+    /// once `out` has room, so a scale that changes every frame costs none.
+    pub fn offsets_into(&self, scale: f32, out: &mut Vec<(i32, i32, u16)>) {
+        out.clear();
         let (r_min, r_max) = (self.r_min * scale, self.r_max * scale);
         let d = self.geometric_bins();
         let geometric_bin = |dx: i32, dy: i32| -> u16 {
@@ -184,7 +193,6 @@ impl HistogramParams {
             };
             (b.max(0.0) as usize).min(d - 1) as u16
         };
-        let mut out = Vec::new();
         match self.sampling {
             OffsetSampling::Dense => {
                 let r = r_max.floor() as i32;
@@ -224,7 +232,6 @@ impl HistogramParams {
                 }
             }
         }
-        out
     }
 }
 
@@ -317,7 +324,7 @@ impl HistogramExtractor {
             return;
         }
         self.scale = scale;
-        self.offsets = self.params.offsets(scale);
+        self.params.offsets_into(scale, &mut self.offsets);
         self.pad = self
             .offsets
             .iter()

@@ -31,6 +31,11 @@ pub struct FrameInfo {
     pub intrinsics: [f64; 4],
     /// Ground truth, when the source knew it.
     pub truth: Option<FrameTruth>,
+    /// The arm's camera pose `world_from_camera` (column-major 3x4,
+    /// OpenCV camera axes), when the arm reported one: a replay fuses over
+    /// the same motion. Absent in recordings made before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arm_world_from_camera: Option<[f64; 12]>,
 }
 
 /// `/acch/response`: the pose stage's match value per database view, in
@@ -59,7 +64,9 @@ pub const FRAME_SCHEMA: &str = r#"{
     "truth": {"type": ["object", "null"], "properties": {
       "theta_deg": {"type": "number"}, "phi_deg": {"type": "number"}, "distance": {"type": "number"},
       "camera_from_object": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
-                             "description": "column-major 3x4, OpenCV camera frame"}}}
+                             "description": "column-major 3x4, OpenCV camera frame"}}},
+    "arm_world_from_camera": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
+                              "description": "the arm's camera pose, column-major 3x4, OpenCV camera axes"}
   },
   "required": ["sequence", "capture_ns", "width", "height", "intrinsics"]
 }"#;
@@ -92,8 +99,11 @@ pub const RESULT_SCHEMA: &str = r#"{
     "found": {"type": "boolean"},
     "roi": {"type": ["array", "null"], "items": {"type": "integer"}},
     "estimate_deg": {"type": ["array", "null"], "items": {"type": "number"}, "description": "theta, phi"},
+    "rating": {"type": "string", "description": "accepted, rejected, unrated, skipped or failed"},
     "confidence": {"type": ["number", "null"]},
+    "threshold": {"type": ["number", "null"]},
     "seed": {"type": ["object", "null"]},
+    "fused": {"type": ["object", "null"]},
     "truth": {"type": ["object", "null"]},
     "trail": {"type": "array", "description": "[stage, [received_ns, published_ns]]"}
   },

@@ -14,6 +14,8 @@ fn info(sequence: u64, w: u32, h: u32) -> FrameInfo {
             distance: 5.0,
             camera_from_object: std::array::from_fn(|i| (i as f64).sqrt() - 1.0 / 7.0),
         }),
+        arm_world_from_camera: (sequence % 3 != 1)
+            .then(|| std::array::from_fn(|i| (i as f64).cbrt() + 1.0 / 3.0)),
     }
 }
 

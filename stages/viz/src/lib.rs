@@ -18,6 +18,10 @@
 //! | `pose/theta`, `pose/phi`, `pose/confidence`, `truth/theta`, `truth/phi` | Scalars |
 //! | `latency/<stage>`, `latency/end_to_end` | Scalars, ms |
 //! | `viz/dropped` | Scalars: frames the viewer skipped to keep up |
+//!
+//! [`plot`] draws the figures of the evaluations and the benchmark as PNG.
+
+pub mod plot;
 
 use rerun::datatypes::{ChannelDatatype, ImageFormat, Quaternion, TensorBuffer, TensorData};
 use rerun::{

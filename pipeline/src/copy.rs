@@ -2,9 +2,8 @@
 //! stream socket per pixel-reading stage; a thread in the stage reads each
 //! frame into a buffer of its own (a ring of `frame_history` buffers,
 //! reused), where the stage looks frame N up.
-use super::PipelineConfig;
-use acch_ipc::StageId;
-use anyhow::{Context, Result};
+
+use crate::PipelineConfig;
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
@@ -12,37 +11,57 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-/// The socket a stage receives its frame copies on.
-pub fn socket_path(cfg: &PipelineConfig, id: StageId) -> PathBuf {
-    std::env::temp_dir().join(format!("acch-{}-{}.sock", cfg.instance, id.name()))
+/// The socket recognition receives its frame copies on.
+pub fn socket_path(cfg: &PipelineConfig) -> PathBuf {
+    std::env::temp_dir().join(format!("acch-{}-recognition.sock", cfg.instance))
+}
+
+/// A socket of the copy transport failed.
+#[derive(Debug, thiserror::Error)]
+#[error("frame copies through {}", path.display())]
+pub struct CopyError {
+    /// The socket.
+    pub path: PathBuf,
+    /// What the system said.
+    #[source]
+    pub source: std::io::Error,
 }
 
 /// Capture's end: one connected stream per consumer.
 pub struct FrameSender {
-    streams: Vec<UnixStream>,
+    streams: Vec<(PathBuf, UnixStream)>,
 }
 
 impl FrameSender {
     /// Connects to every consumer's socket.
-    pub fn connect(paths: &[PathBuf]) -> Result<Self> {
+    pub fn connect(paths: &[PathBuf]) -> Result<Self, CopyError> {
         let streams = paths
             .iter()
             .map(|p| {
-                UnixStream::connect(p).with_context(|| format!("connecting to {}", p.display()))
+                UnixStream::connect(p)
+                    .map(|s| (p.clone(), s))
+                    .map_err(|source| CopyError {
+                        path: p.clone(),
+                        source,
+                    })
             })
-            .collect::<Result<_>>()?;
+            .collect::<Result<_, _>>()?;
         Ok(FrameSender { streams })
     }
 
     /// Writes frame `sequence` to every consumer (blocks while a
     /// consumer's socket buffer is full).
-    pub fn send(&mut self, sequence: u64, pixels: &[u8]) -> Result<()> {
+    pub fn send(&mut self, sequence: u64, pixels: &[u8]) -> Result<(), CopyError> {
         let mut head = [0u8; 16];
         head[..8].copy_from_slice(&sequence.to_ne_bytes());
         head[8..].copy_from_slice(&(pixels.len() as u64).to_ne_bytes());
-        for s in &mut self.streams {
-            s.write_all(&head).context("writing a frame copy")?;
-            s.write_all(pixels).context("writing a frame copy")?;
+        for (path, s) in &mut self.streams {
+            s.write_all(&head)
+                .and_then(|_| s.write_all(pixels))
+                .map_err(|source| CopyError {
+                    path: path.clone(),
+                    source,
+                })?;
         }
         Ok(())
     }
@@ -65,10 +84,12 @@ pub struct FrameReceiver {
 impl FrameReceiver {
     /// Binds the stage's socket and starts the thread that accepts
     /// capture and copies every frame in.
-    pub fn bind(path: &Path, capacity: usize) -> Result<Self> {
+    pub fn bind(path: &Path, capacity: usize) -> Result<Self, CopyError> {
         let _ = std::fs::remove_file(path);
-        let listener =
-            UnixListener::bind(path).with_context(|| format!("binding {}", path.display()))?;
+        let listener = UnixListener::bind(path).map_err(|source| CopyError {
+            path: path.to_owned(),
+            source,
+        })?;
         let shared = Arc::new((
             Mutex::new(Ring {
                 capacity: capacity.max(1),

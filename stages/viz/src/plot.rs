@@ -1,10 +1,40 @@
 //! PNG plots for people: the match-value response (like the paper's figures
-//! 3 and 6), drawn with plotters into a buffer and saved with `image`.
+//! 3 and 6), reliability diagrams and latency curves, drawn with plotters
+//! into a buffer and saved with `image`.
 
-use anyhow::{Context, Result, anyhow};
 use plotters::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
+
+/// A plot could not be drawn or written.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// Plotters failed to draw.
+    #[error("drawing {}: {reason}", path.display())]
+    Draw {
+        /// The plot's file.
+        path: PathBuf,
+        /// What plotters said.
+        reason: String,
+    },
+    /// The PNG could not be written.
+    #[error("writing {}", path.display())]
+    Write {
+        /// The plot's file.
+        path: PathBuf,
+        /// What the encoder said.
+        #[source]
+        source: image::ImageError,
+    },
+}
+
+/// What a drawing closure returns: plotters' errors as text.
+pub type DrawResult = Result<(), String>;
+
+/// Turns a plotters error into a [`DrawResult`] error.
+pub fn draw_err<E: std::fmt::Display>(e: E) -> String {
+    e.to_string()
+}
 
 /// Plotters needs a font; the embedded one makes plots work on machines
 /// without any installed.
@@ -24,20 +54,27 @@ fn register_font() {
 pub fn draw_png(
     path: &Path,
     (w, h): (u32, u32),
-    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> Result<()>,
-) -> Result<()> {
+    draw: impl FnOnce(&DrawingArea<BitMapBackend, plotters::coord::Shift>) -> DrawResult,
+) -> Result<(), PlotError> {
     register_font();
+    let failed = |reason: String| PlotError::Draw {
+        path: path.to_owned(),
+        reason,
+    };
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-        draw(&root)?;
-        root.present().map_err(|e| anyhow!("{e}"))?;
+        root.fill(&WHITE).map_err(draw_err).map_err(failed)?;
+        draw(&root).map_err(failed)?;
+        root.present().map_err(draw_err).map_err(failed)?;
     }
     image::RgbImage::from_raw(w, h, buf)
         .expect("buffer matches its size")
         .save(path)
-        .with_context(|| format!("writing {}", path.display()))
+        .map_err(|source| PlotError::Write {
+            path: path.to_owned(),
+            source,
+        })
 }
 
 /// One θ slice of a response plot: its first view index, length and θ.
@@ -59,8 +96,8 @@ pub fn response_plot(
     slices: &[SliceMark],
     best: usize,
     truth: Option<usize>,
-) -> Result<()> {
-    let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+) -> Result<(), PlotError> {
+    let e = draw_err;
     draw_png(path, (1000, 420), |root| {
         let lo = response
             .iter()
@@ -141,15 +178,26 @@ pub fn response_plot(
     })
 }
 
+/// One bin of a reliability diagram.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReliabilityBin {
+    /// Mean predicted confidence of the bin's estimates.
+    pub mean_confidence: f64,
+    /// Share of them that were reliable.
+    pub accuracy: f64,
+    /// Estimates in the bin.
+    pub count: usize,
+}
+
 /// A reliability diagram: per confidence bin, the share of reliable
 /// estimates against the mean confidence, one series per network; the
 /// diagonal is perfect calibration. Bar labels give the bin counts.
 pub fn reliability_diagram(
     path: &Path,
     title: &str,
-    series: &[(&str, &[acch_confidence::Bin])],
-) -> Result<()> {
-    let e = |e: DrawingAreaErrorKind<_>| anyhow!("plot: {e}");
+    series: &[(&str, &[ReliabilityBin])],
+) -> Result<(), PlotError> {
+    let e = draw_err;
     let colours = [BLUE, RED, GREEN, MAGENTA];
     draw_png(path, (640, 560), |root| {
         let mut chart = ChartBuilder::on(root)

@@ -1,25 +1,24 @@
-//! The `viz` process: what the pipeline sees, logged to rerun (`acch run
+//! The viewer: what the pipeline sees, logged to rerun (`acch run
 //! --rerun save:FILE.rrd | spawn | connect:URL`). Off the hot path: it
 //! subscribes to the frames and to the segmentation (mask), pose (response)
 //! and seeding (final result) services; nothing waits for it. When it falls
 //! behind, iceoryx2 drops the oldest samples queued for it; the gaps are
 //! counted, logged to `viz/dropped` and reported at exit.
 
-use super::observe::{
-    Gaps, Observe, Streams, announce_ready, frame_mask, lower_priority, response_values,
-};
-use crate::stages::PipelineConfig;
-use acch_core::ViewDatabase;
-use acch_ipc::{FrameHeader, Observer, ResultMsg, StageId};
+use crate::PipelineConfig;
+use crate::frame::FrameHeader;
+use crate::node::{NodeError, announce_ready};
+use crate::observe::{Gaps, Observe, ObserveError, Observer, Streams, lower_priority};
+use crate::stages::{Posed, RegionPayload, ResponsePayload, Seeded, Segmented};
+use crate::wire::{Hop, StageId};
 use acch_viz::{Logger, Observation, Sink, Truth};
-use anyhow::{Result, anyhow};
 use glam::{DAffine3, DQuat};
 use serde::Serialize;
 use std::time::Duration;
 
 /// What the viewer logged and what it missed.
 #[derive(Serialize, Debug, Default)]
-struct VizSummary {
+pub struct VizSummary {
     sink: String,
     frames: u64,
     masks: u64,
@@ -127,45 +126,47 @@ fn log_items(
 }
 
 /// The viewer's view of a final result.
-fn observation(m: &ResultMsg) -> Observation {
+fn observation(m: &Seeded) -> Observation {
+    let e = m.envelope();
     let stage_ms = StageId::ALL
         .iter()
-        .map(|s| {
-            let t = m.trail.stages[*s as usize];
-            (
-                s.name(),
-                t.published_ns.saturating_sub(t.received_ns) as f64 / 1e6,
-            )
-        })
+        .map(|s| (s.name(), e.trail.process_ns(*s) as f64 / 1e6))
         .collect();
-    let end = m.trail.stages[StageId::Seeding as usize].published_ns;
+    let wide = |r: [u32; 4]| r.map(u64::from);
     Observation {
-        sequence: m.sequence,
-        capture_ns: m.trail.captured_ns,
-        window: (m.found == 1).then_some(m.window),
-        roi: (m.segmented == 1).then_some(m.roi),
-        estimate_deg: (m.estimated == 1).then_some([m.estimate[0], m.estimate[1]]),
-        confidence: (m.rated == 1).then_some(m.confidence),
-        seed: (m.seeded == 1 && m.accepted == 1)
-            .then_some((m.seed_translation, m.seed_rotation_xyzw)),
-        truth: (m.truth.valid == 1).then(|| {
-            let a = DAffine3::from_cols_array(&m.truth.camera_from_object);
+        sequence: e.frame.sequence,
+        capture_ns: e.trail.captured_ns,
+        window: m.detection().done().map(|w| wide(w.window.to_array())),
+        roi: m.region().done().map(|r| wide(r.to_array())),
+        estimate_deg: m
+            .pose()
+            .done()
+            .map(|p| [p.theta_deg as f64, p.phi_deg as f64]),
+        confidence: m.rating().verdict().map(|v| v.confidence as f64),
+        seed: m
+            .seed()
+            .filter(|_| m.accepted())
+            .map(|s| (s.translation, s.rotation_xyzw)),
+        truth: e.frame.truth.get().map(|t| {
+            let a = DAffine3::from_cols_array(&t.camera_from_object);
             Truth {
-                theta_deg: m.truth.theta_deg,
-                phi_deg: m.truth.phi_deg,
+                theta_deg: t.theta_deg,
+                phi_deg: t.phi_deg,
                 translation: a.translation.to_array(),
                 rotation_xyzw: DQuat::from_mat3(&a.matrix3).normalize().to_array(),
             }
         }),
         stage_ms,
-        end_to_end_ms: end.saturating_sub(m.trail.captured_ns) as f64 / 1e6,
+        end_to_end_ms: e.trail.end_to_end_ns() as f64 / 1e6,
     }
 }
 
 /// The viewer's side of each sample: queued for the logging thread, or
 /// counted when the queue is full.
-struct Viewing {
+pub struct Viewing {
     s: VizSummary,
+    /// Views of the database (responses have one value each).
+    views: usize,
     tx: std::sync::mpsc::SyncSender<Item>,
     /// Samples missed before this pass's results (frames dropped included).
     missed_before: u64,
@@ -193,14 +194,15 @@ impl Viewing {
 }
 
 impl Observe for Viewing {
-    fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<()> {
+    fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<(), ObserveError> {
         if !pixels.is_empty() {
+            let f = &h.envelope.frame;
             let item = Item::Frame {
-                sequence: h.sequence,
-                capture_ns: h.capture_ns,
-                width: h.width as u32,
-                height: h.height as u32,
-                intrinsics: h.intrinsics,
+                sequence: f.sequence,
+                capture_ns: h.envelope.trail.captured_ns,
+                width: f.width,
+                height: f.height,
+                intrinsics: f.intrinsics.to_array(),
                 rgb: pixels.to_vec(),
             };
             self.s.frames += u64::from(queue(&self.tx, item, &mut self.s.frames_queue_full));
@@ -208,14 +210,16 @@ impl Observe for Viewing {
         Ok(())
     }
 
-    fn mask(&mut self, h: &ResultMsg, payload: &[u8]) -> Result<()> {
-        let mut mask = Vec::new();
-        if h.segmented == 1 && frame_mask(h, payload, &mut mask) {
+    fn region(&mut self, h: &Segmented, payload: &[u8]) -> Result<(), ObserveError> {
+        if let Ok(Some(region)) = RegionPayload::read(h, payload) {
+            let e = h.envelope();
+            let mut mask = Vec::new();
+            region.frame_mask(e.frame.width, e.frame.height, &mut mask);
             let item = Item::Mask {
-                sequence: h.sequence,
-                capture_ns: h.trail.captured_ns,
-                width: h.width as u32,
-                height: h.height as u32,
+                sequence: e.frame.sequence,
+                capture_ns: e.trail.captured_ns,
+                width: e.frame.width,
+                height: e.frame.height,
                 mask,
             };
             self.s.masks += u64::from(queue(&self.tx, item, &mut self.s.masks_queue_full));
@@ -223,12 +227,13 @@ impl Observe for Viewing {
         Ok(())
     }
 
-    fn response(&mut self, h: &ResultMsg, payload: &[u8]) -> Result<()> {
-        if h.estimated == 1 {
+    fn response(&mut self, h: &Posed, payload: &[u8]) -> Result<(), ObserveError> {
+        if let Ok(Some(r)) = ResponsePayload::read(h, self.views, payload) {
+            let e = h.envelope();
             let item = Item::Response {
-                sequence: h.sequence,
-                capture_ns: h.trail.captured_ns,
-                values: response_values(payload),
+                sequence: e.frame.sequence,
+                capture_ns: e.trail.captured_ns,
+                values: r.values().collect(),
             };
             self.s.responses += u64::from(queue(&self.tx, item, &mut self.s.responses_queue_full));
         }
@@ -240,16 +245,17 @@ impl Observe for Viewing {
         self.last = None;
     }
 
-    fn result(&mut self, m: &ResultMsg) -> Result<()> {
+    fn result(&mut self, m: &Seeded) -> Result<(), ObserveError> {
         let item = Item::Observation(Box::new(observation(m)));
         self.s.results += u64::from(queue(&self.tx, item, &mut self.s.results_queue_full));
-        self.last = Some((m.sequence, m.trail.captured_ns));
+        let e = m.envelope();
+        self.last = Some((e.frame.sequence, e.trail.captured_ns));
         Ok(())
     }
 
     /// Logs the dropped count when it grew this pass (and on the first
     /// frame, so the series starts at 0).
-    fn results_end(&mut self, gaps: &[Gaps; 4]) -> Result<()> {
+    fn results_end(&mut self, gaps: &[Gaps; 4]) -> Result<(), ObserveError> {
         if let Some((sequence, capture_ns)) = self.last
             && (self.missed(gaps) != self.missed_before || sequence == 0)
         {
@@ -268,20 +274,86 @@ impl Observe for Viewing {
     }
 }
 
-/// Runs the viewer until SIGINT, then drains what is queued, flushes the
-/// sink and prints its counts.
-pub fn run(cfg: &PipelineConfig) -> Result<()> {
+impl Viewing {
+    /// A viewer logging to `sink` (`save:FILE.rrd`, `spawn`, `connect:URL`)
+    /// for a database whose views are `views` (θ, φ degrees); rerun's
+    /// logging runs on a thread of its own behind a bounded queue.
+    pub fn open(
+        sink_arg: &str,
+        views: &[(f32, f32)],
+    ) -> Result<(Self, ViewerThread), ObserveError> {
+        let sink = Sink::parse(sink_arg)?;
+        let log = Logger::new(sink.open("acch")?, views)?;
+        // rerun's log() blocks when its sink cannot keep up (a stalled or
+        // absent viewer): it runs on its own thread behind a bounded queue,
+        // and what does not fit is dropped and counted here.
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Item>(QUEUE);
+        let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+        let name = sink_arg.to_owned();
+        let logger = std::thread::spawn(move || log_items(log, rx, &name, done_tx));
+        Ok((
+            Viewing {
+                s: VizSummary {
+                    sink: sink_arg.to_owned(),
+                    ..Default::default()
+                },
+                views: views.len(),
+                tx,
+                missed_before: 0,
+                last: None,
+            },
+            ViewerThread { logger, done_rx },
+        ))
+    }
+
+    /// Closes the queue, lets the logging thread flush (3 s at most: a
+    /// viewer that went away must not keep the run waiting) and returns
+    /// the counts, with `missed` (frames, masks, responses, results) from
+    /// the streams.
+    pub fn finish(self, thread: ViewerThread, missed: [u64; 4]) -> VizSummary {
+        let Viewing { mut s, tx, .. } = self;
+        [
+            s.frames_missed,
+            s.masks_missed,
+            s.responses_missed,
+            s.results_missed,
+        ] = missed;
+        drop(tx);
+        match thread.done_rx.recv_timeout(Duration::from_secs(3)) {
+            Ok(()) => {
+                let _ = thread.logger.join();
+            }
+            Err(_) => {
+                s.unflushed = true;
+                tracing::warn!(
+                    "viz: rerun sink {} did not take the last data in 3 s",
+                    s.sink
+                );
+            }
+        }
+        s
+    }
+}
+
+/// The viewer's logging thread.
+pub struct ViewerThread {
+    logger: std::thread::JoinHandle<()>,
+    done_rx: std::sync::mpsc::Receiver<()>,
+}
+
+/// Runs the viewer process until SIGINT, then drains what is queued,
+/// flushes the sink and prints its counts.
+pub fn run_viz(cfg: &PipelineConfig) -> Result<VizSummary, NodeError> {
     let sink_arg = cfg
         .rerun
         .clone()
-        .ok_or_else(|| anyhow!("the configuration names no rerun sink (rerun = ...)"))?;
-    let sink = Sink::parse(&sink_arg)?;
+        .ok_or(crate::config::ConfigError::Invalid {
+            key: "rerun",
+            value: String::new(),
+            why: "the viz process needs a rerun sink",
+        })?;
     lower_priority(Observer::Viz);
-    let db_path = cfg
-        .db
-        .as_ref()
-        .ok_or_else(|| anyhow!("the configuration names no database (db = ...)"))?;
-    let db = ViewDatabase::load(db_path)?;
+    let db = cfg.database()?;
     let views: Vec<(f32, f32)> = db
         .views()
         .iter()
@@ -289,48 +361,11 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
         .collect();
     drop(db);
     let ipc = cfg.ipc("viz")?;
-    let mut streams = Streams::open(&ipc)?;
-    let log = Logger::new(sink.open("acch")?, &views)?;
-    // rerun's log() blocks when its sink cannot keep up (a stalled or
-    // absent viewer): it runs on its own thread behind a bounded queue, and
-    // what does not fit is dropped and counted here.
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Item>(QUEUE);
-    let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
-    let sink_name = sink_arg.clone();
-    let logger = std::thread::spawn(move || log_items(log, rx, &sink_name, done_tx));
-    announce_ready(&ipc, Observer::Viz)?;
-    let mut out = Viewing {
-        s: VizSummary {
-            sink: sink_arg,
-            ..Default::default()
-        },
-        tx,
-        missed_before: 0,
-        last: None,
-    };
+    let mut streams = Streams::open(&ipc, cfg.frame_history)?;
+    let (mut out, thread) = Viewing::open(&sink_arg, &views)?;
+    announce_ready(&ipc, Observer::Viz.ready_id())?;
     streams.observe_until_stopped(&ipc, &mut out)?;
-    let Viewing { mut s, tx, .. } = out;
-    [
-        s.frames_missed,
-        s.masks_missed,
-        s.responses_missed,
-        s.results_missed,
-    ] = streams.missed();
-    drop(tx);
-    // The logger thread finishes the queue and flushes; a viewer that went
-    // away must not keep this process (or the run) waiting.
-    match done_rx.recv_timeout(Duration::from_secs(3)) {
-        Ok(()) => {
-            let _ = logger.join();
-        }
-        Err(_) => {
-            s.unflushed = true;
-            tracing::warn!(
-                "viz: rerun sink {} did not take the last data in 3 s",
-                s.sink
-            );
-        }
-    }
+    let s = out.finish(thread, streams.missed());
     let skipped = s.frames_missed + s.frames_queue_full;
     if skipped + s.results_missed + s.results_queue_full > 0 {
         tracing::warn!(
@@ -338,6 +373,9 @@ pub fn run(cfg: &PipelineConfig) -> Result<()> {
             s.results_missed + s.results_queue_full
         );
     }
-    eprintln!("acch viz summary: {}", serde_json::to_string(&s)?);
-    Ok(())
+    eprintln!(
+        "acch viz summary: {}",
+        serde_json::to_string(&s).expect("counts serialise")
+    );
+    Ok(s)
 }

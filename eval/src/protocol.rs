@@ -1,0 +1,172 @@
+//! What every protocol shares: the paper's training grid, the test
+//! backgrounds, the failure rule, how scenes are seeded and rendered, and
+//! the chain every protocol runs.
+
+use crate::EvalError;
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, ViewPose,
+};
+use acch_confidence::Tolerance;
+use acch_core::ViewDatabase;
+use acch_pipeline::wire::{ArmPose, Intrinsics, Maybe, Truth};
+use acch_pipeline::{Chain, FrameHeader, StageSettings};
+use acch_pose::train::LabelledView;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// The paper's training grid: θ in {45, 50, 60, 70, 80, 90} x φ every 10°.
+pub const PAPER_GRID: &str = "grid:45,50,60,70,80,90:10";
+
+/// The paper's failure rule (section 3.1): an open-loop grasp fails beyond
+/// |Δθ| > 10° or |Δφ| > 20°. The one home of the rule.
+pub fn failure_rule() -> Tolerance {
+    Tolerance::default()
+}
+
+/// Whether estimate (θ, φ) fails against the truth (θ, φ), degrees.
+pub fn fails(estimate: (f32, f32), truth: (f32, f32)) -> bool {
+    !failure_rule().reliable(estimate, truth)
+}
+
+/// Backgrounds of the textured-scene protocols: (reported name, renderer
+/// background). `clutter` is reported for distractors painted in the
+/// object's own colours.
+pub const BACKGROUNDS: [(&str, &str); 4] = [
+    ("A", "A"),
+    ("B", "B"),
+    ("C", "C"),
+    ("clutter", "clutter-similar"),
+];
+
+/// The backgrounds of [`BACKGROUNDS`], parsed.
+pub fn backgrounds() -> Vec<(&'static str, Background)> {
+    BACKGROUNDS
+        .iter()
+        .map(|(name, bg)| (*name, bg.parse().expect("the protocol's backgrounds parse")))
+        .collect()
+}
+
+/// Scene seed of item `i` on background `b` of protocol part `salt`:
+/// disjoint from table 2's (which uses the set seed itself and
+/// `frame_seed(seed, i)`).
+pub fn scene_seed(seed: u64, b: usize, i: usize, salt: u64) -> u64 {
+    acch_capture::frame_seed(seed ^ (salt << 32) ^ ((b as u64 + 1) << 48), i)
+}
+
+/// A progress bar on stderr with a message and a count.
+pub fn progress(len: u64, message: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(message.to_owned());
+    bar
+}
+
+/// A renderer of `object` on `background` with the default intrinsics.
+pub fn renderer(object: Arc<Object>, background: Background, scene_seed: u64) -> Renderer {
+    Renderer::new(SceneConfig::new(object, background), scene_seed)
+}
+
+/// Renders `views` in parallel, in order, with a progress bar; view `i`
+/// gets frame seed `frame_seed(seed, i)`.
+pub fn render_views(
+    renderer: &Renderer,
+    views: &[ViewPose],
+    seed: u64,
+    message: &str,
+) -> Vec<Rendered> {
+    let bar = progress(views.len() as u64, message);
+    let out = views
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let r = renderer.render(v, acch_capture::frame_seed(seed, i));
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
+}
+
+/// A rendered view as training input, with its ground-truth mask.
+pub fn labelled(r: &Rendered, train_distance: f64) -> LabelledView<'_> {
+    LabelledView {
+        rgb: r.image.as_raw(),
+        mask: r.mask.as_raw(),
+        width: r.image.width(),
+        height: r.image.height(),
+        theta_deg: r.truth.theta_deg as f32,
+        phi_deg: r.truth.phi_deg as f32,
+        scale: (train_distance / r.truth.distance) as f32,
+    }
+}
+
+/// The frame header of rendered frame `sequence`, with its ground truth
+/// and, when `arm` is set, the arm's camera pose (so seeding fuses over
+/// the camera's motion), as the simulated camera sends it.
+pub fn frame_of(r: &Rendered, sequence: u64, arm: bool) -> FrameHeader {
+    let (w, h) = r.image.dimensions();
+    let mut f = FrameHeader::rgb(sequence, w, h, Intrinsics::from(&r.truth.intrinsics));
+    let t = &r.truth;
+    f.envelope.frame.truth = Maybe::Present(Truth {
+        theta_deg: t.theta_deg,
+        phi_deg: t.phi_deg,
+        distance: t.distance,
+        camera_from_object: t.world_from_camera.inverse().to_cols_array(),
+    });
+    if arm {
+        f.envelope.frame.arm = Maybe::Present(ArmPose {
+            world_from_camera: t.world_from_camera.to_cols_array(),
+        });
+    }
+    f
+}
+
+/// The chain of the deployed stages over `db`, for frames of the default
+/// camera at the known training distance (as every protocol runs it).
+pub fn chain(db: &ViewDatabase) -> Result<Chain, EvalError> {
+    let k = acch_capture::Intrinsics::default();
+    Ok(Chain::build(
+        db,
+        &StageSettings {
+            width: k.width,
+            height: k.height,
+            distance: Some(DEFAULT_DISTANCE),
+            unrated: false,
+        },
+    )?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rule_fails_beyond_ten_degrees_of_theta_or_twenty_of_phi() {
+        assert!(!fails((60.0, 10.0), (70.0, 30.0)));
+        assert!(fails((60.0, 10.0), (70.1, 10.0)));
+        assert!(fails((60.0, 350.0), (60.0, 10.5)));
+        assert!(!fails((60.0, 350.0), (60.0, 9.5)));
+        assert!(fails((f32::NAN, 0.0), (60.0, 0.0)));
+    }
+
+    #[test]
+    fn scene_seeds_of_parts_and_backgrounds_differ() {
+        let s = [
+            scene_seed(1, 0, 0, 1),
+            scene_seed(1, 1, 0, 1),
+            scene_seed(1, 0, 1, 1),
+            scene_seed(1, 0, 0, 2),
+        ];
+        for i in 0..s.len() {
+            for j in i + 1..s.len() {
+                assert_ne!(s[i], s[j]);
+            }
+        }
+    }
+}

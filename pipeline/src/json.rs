@@ -1,0 +1,346 @@
+//! The JSON view of a final result and of its seed, as published on zenoh
+//! (`<prefix>/<object>/result`, `.../seed`) and recorded to MCAP. The views
+//! borrow from the result ([`ResultJson::of`]) and are written into a
+//! reused buffer ([`JsonWriter`]), so publishing a frame allocates nothing
+//! of ours.
+
+use crate::stages::Seeded;
+use crate::wire::{Hop, STAGES, StageId};
+use glam::DQuat;
+use serde::Serialize;
+
+/// A time stamp: CLOCK_MONOTONIC nanoseconds of the capturing machine.
+#[derive(Serialize, Debug, Clone, Copy)]
+pub struct Stamp {
+    /// Always "CLOCK_MONOTONIC".
+    pub clock: &'static str,
+    /// Frame captured.
+    pub captured_ns: u64,
+    /// Result published by the seeding stage.
+    pub published_ns: u64,
+}
+
+/// The unit every translation of a result is in.
+pub const TRANSLATION_UNIT: &str = "object bounding radii";
+
+/// The JSON published at `<prefix>/<object>/seed`.
+#[derive(Serialize, Debug, Clone)]
+pub struct SeedJson<'a> {
+    /// Object name.
+    pub object: &'a str,
+    /// Frame number.
+    pub sequence: u64,
+    /// Time stamps.
+    pub stamp: Stamp,
+    /// Parent frame: the OpenCV camera frame (x right, y down, z forward).
+    pub frame_id: &'static str,
+    /// Child frame: the object (centre at origin, z up).
+    pub child_frame_id: &'static str,
+    /// Object centre in the camera frame.
+    pub translation: [f64; 3],
+    /// Unit of the translation.
+    pub translation_unit: &'static str,
+    /// camera_from_object rotation, quaternion [x, y, z, w].
+    pub rotation_xyzw: [f64; 4],
+    /// Row-major 6x6 covariance over (tx, ty, tz, rx, ry, rz), left
+    /// perturbation in the camera frame, rotation in rad.
+    pub covariance: &'a [f64],
+    /// Confidence of the 2-DOF estimate, [0, 1].
+    pub confidence: f32,
+}
+
+/// Ground truth in the result (synthetic frames only).
+#[derive(Serialize, Debug, Clone)]
+pub struct TruthJson {
+    /// Elevation, degrees.
+    pub theta_deg: f64,
+    /// Azimuth, degrees.
+    pub phi_deg: f64,
+    /// Distance, object bounding radii.
+    pub distance: f64,
+    /// True camera_from_object translation.
+    pub translation: [f64; 3],
+    /// True camera_from_object rotation [x, y, z, w].
+    pub rotation_xyzw: [f64; 4],
+}
+
+/// The seeding stage's pose fused over time, in a result.
+#[derive(Serialize, Debug, Clone)]
+pub struct FusedJson<'a> {
+    /// θ, φ degrees.
+    pub view_deg: [f64; 2],
+    /// Row-major 2x2 covariance of (θ, φ), degrees².
+    pub view_covariance_deg2: [f64; 4],
+    /// camera_from_object translation.
+    pub translation: [f64; 3],
+    /// camera_from_object rotation [x, y, z, w].
+    pub rotation_xyzw: [f64; 4],
+    /// Row-major 3x3 rotation covariance, radians².
+    pub rotation_covariance: &'a [f64],
+    /// What this frame's estimate did: none, started, fused, gated, restarted.
+    pub outcome: &'static str,
+    /// Estimates fused since the filter (re)started.
+    pub fused: u32,
+    /// Frames since the last fused estimate.
+    pub since_update: u32,
+}
+
+/// The JSON published at `<prefix>/<object>/result`, one per frame.
+#[derive(Serialize, Debug, Clone)]
+pub struct ResultJson<'a> {
+    /// Object name.
+    pub object: &'a str,
+    /// Frame number.
+    pub sequence: u64,
+    /// Whether a pose is reported: estimated, rated at or above the
+    /// threshold, seeded. What a robot acts on.
+    pub accepted: bool,
+    /// The confidence stage's verdict: accepted, rejected, unrated (the
+    /// database has no network), skipped (nothing estimated) or failed.
+    pub rating: &'static str,
+    /// The network's confidence, when rated.
+    pub confidence: Option<f32>,
+    /// The threshold it was held against, when rated.
+    pub threshold: Option<f32>,
+    /// Time stamps.
+    pub stamp: Stamp,
+    /// Whether recognition found the object.
+    pub found: bool,
+    /// ROI [x, y, width, height] pixels, when segmented.
+    pub roi: Option<[u32; 4]>,
+    /// θ, φ degrees, when estimated.
+    pub estimate_deg: Option<[f32; 2]>,
+    /// The seed, when accepted.
+    pub seed: Option<SeedJson<'a>>,
+    /// The pose fused over the frames so far, once the filter has one.
+    pub fused: Option<FusedJson<'a>>,
+    /// Ground truth, when the source knows it.
+    pub truth: Option<TruthJson>,
+    /// Per stage [received_ns, published_ns], CLOCK_MONOTONIC.
+    pub trail: [(&'static str, [u64; 2]); STAGES],
+}
+
+/// A rotation matrix's quaternion, [x, y, z, w].
+fn quaternion(camera_from_object: &[f64; 12]) -> ([f64; 3], [f64; 4]) {
+    let a = glam::DAffine3::from_cols_array(camera_from_object);
+    (
+        a.translation.to_array(),
+        DQuat::from_mat3(&a.matrix3).normalize().to_array(),
+    )
+}
+
+impl<'a> ResultJson<'a> {
+    /// The JSON view of final result `m` of `object`.
+    pub fn of(object: &'a str, m: &'a Seeded) -> Self {
+        let e = m.envelope();
+        let stamp = Stamp {
+            clock: "CLOCK_MONOTONIC",
+            captured_ns: e.trail.captured_ns,
+            published_ns: e.trail.of(StageId::Seeding).published_ns,
+        };
+        let verdict = m.rating().verdict();
+        let seed = m
+            .seeding
+            .seed
+            .done()
+            .filter(|_| m.accepted())
+            .map(|_| SeedJson {
+                object,
+                sequence: e.frame.sequence,
+                stamp,
+                frame_id: "camera_optical",
+                child_frame_id: "object",
+                translation: seed_of(m).translation,
+                translation_unit: TRANSLATION_UNIT,
+                rotation_xyzw: seed_of(m).rotation_xyzw,
+                covariance: seed_covariance(m),
+                confidence: verdict.map_or(0.0, |v| v.confidence),
+            });
+        let truth = e.frame.truth.get().map(|t| {
+            let (translation, rotation_xyzw) = quaternion(&t.camera_from_object);
+            TruthJson {
+                theta_deg: t.theta_deg,
+                phi_deg: t.phi_deg,
+                distance: t.distance,
+                translation,
+                rotation_xyzw,
+            }
+        });
+        let fused = match &m.seeding.fused {
+            crate::wire::Maybe::Present(f) => {
+                let (translation, rotation_xyzw) = quaternion(&f.camera_from_object);
+                Some(FusedJson {
+                    view_deg: f.view_deg,
+                    view_covariance_deg2: f.view_covariance_deg2,
+                    translation,
+                    rotation_xyzw,
+                    rotation_covariance: &f.rotation_covariance,
+                    outcome: m.seeding.fusion.name(),
+                    fused: f.fused,
+                    since_update: f.since_update,
+                })
+            }
+            crate::wire::Maybe::Absent => None,
+        };
+        ResultJson {
+            object,
+            sequence: e.frame.sequence,
+            accepted: m.accepted(),
+            rating: m.rating().state(),
+            confidence: verdict.map(|v| v.confidence),
+            threshold: verdict.map(|v| v.threshold),
+            stamp,
+            found: m.detection().done().is_some(),
+            roi: m.region().done().map(|r| r.to_array()),
+            estimate_deg: m.pose().done().map(|p| [p.theta_deg, p.phi_deg]),
+            seed,
+            fused,
+            truth,
+            trail: StageId::ALL.map(|s| {
+                let t = e.trail.of(s);
+                (s.name(), [t.received_ns, t.published_ns])
+            }),
+        }
+    }
+}
+
+fn seed_of(m: &Seeded) -> crate::stages::SeedPose {
+    m.seed().unwrap_or_default()
+}
+
+fn seed_covariance(m: &Seeded) -> &[f64] {
+    match &m.seeding.seed {
+        crate::wire::Outcome::Done(s) => s.covariance.as_flattened(),
+        _ => &[],
+    }
+}
+
+/// Writes results and seeds as JSON into buffers it keeps: after the first
+/// frames no allocation.
+#[derive(Default)]
+pub struct JsonWriter {
+    result: Vec<u8>,
+    seed: Vec<u8>,
+}
+
+impl JsonWriter {
+    /// Writes `m`'s result and, when accepted, its seed; returns the
+    /// result's JSON and the seed's.
+    pub fn write(
+        &mut self,
+        object: &str,
+        m: &Seeded,
+    ) -> Result<(&[u8], Option<&[u8]>), serde_json::Error> {
+        let r = ResultJson::of(object, m);
+        self.result.clear();
+        serde_json::to_writer(&mut self.result, &r)?;
+        let seed = match &r.seed {
+            Some(s) => {
+                self.seed.clear();
+                serde_json::to_writer(&mut self.seed, s)?;
+                Some(&self.seed[..])
+            }
+            None => None,
+        };
+        Ok((&self.result, seed))
+    }
+}
+
+/// The zenoh sink of the seeding stage: every result at
+/// `<prefix>/<object>/result`, every accepted seed at `.../seed`.
+pub struct ZenohSink {
+    object: String,
+    seeds: acch_ipc::Publisher,
+    results: acch_ipc::Publisher,
+    json: JsonWriter,
+    // The session outlives its publishers.
+    _session: zenoh::Session,
+}
+
+impl ZenohSink {
+    /// Opens a session on `config` and declares `object`'s publishers.
+    pub fn open(
+        config: &acch_ipc::ZenohConfig,
+        object: &str,
+    ) -> Result<Self, acch_ipc::ZenohError> {
+        let session = acch_ipc::open_session(&config.listen, &config.connect)?;
+        Ok(ZenohSink {
+            seeds: acch_ipc::Publisher::declare(
+                &session,
+                &format!("{}/{object}/seed", config.prefix),
+            )?,
+            results: acch_ipc::Publisher::declare(
+                &session,
+                &format!("{}/{object}/result", config.prefix),
+            )?,
+            object: object.to_owned(),
+            json: JsonWriter::default(),
+            _session: session,
+        })
+    }
+}
+
+impl crate::observe::Observe for ZenohSink {
+    fn result(&mut self, m: &Seeded) -> Result<(), crate::observe::ObserveError> {
+        let (result, seed) = self.json.write(&self.object, m)?;
+        if let Some(seed) = seed {
+            self.seeds.put(seed).map_err(acch_ipc::IpcError::from)?;
+        }
+        self.results.put(result).map_err(acch_ipc::IpcError::from)?;
+        Ok(())
+    }
+}
+
+/// Writes every result as one line of JSON into a file (`acch run
+/// --results FILE.jsonl`).
+pub struct JsonLines {
+    path: std::path::PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    object: String,
+    json: JsonWriter,
+}
+
+impl JsonLines {
+    /// Creates `path` for results of `object`.
+    pub fn create(
+        path: &std::path::Path,
+        object: &str,
+    ) -> Result<Self, crate::observe::ObserveError> {
+        let file =
+            std::fs::File::create(path).map_err(|source| crate::observe::ObserveError::Io {
+                path: path.to_owned(),
+                source,
+            })?;
+        Ok(JsonLines {
+            path: path.to_owned(),
+            file: std::io::BufWriter::new(file),
+            object: object.to_owned(),
+            json: JsonWriter::default(),
+        })
+    }
+
+    /// Writes what is buffered.
+    pub fn flush(&mut self) -> Result<(), crate::observe::ObserveError> {
+        use std::io::Write;
+        self.file
+            .flush()
+            .map_err(|source| crate::observe::ObserveError::Io {
+                path: self.path.clone(),
+                source,
+            })
+    }
+}
+
+impl crate::observe::Observe for JsonLines {
+    fn result(&mut self, m: &Seeded) -> Result<(), crate::observe::ObserveError> {
+        use std::io::Write;
+        let (line, _) = self.json.write(&self.object, m)?;
+        self.file
+            .write_all(line)
+            .and_then(|_| self.file.write_all(b"\n"))
+            .map_err(|source| crate::observe::ObserveError::Io {
+                path: self.path.clone(),
+                source,
+            })
+    }
+}

@@ -1,0 +1,207 @@
+//! The recorder: every frame, region, response, result and seed of a run
+//! into MCAP (`acch run --record FILE.mcap`), as Foxglove protobuf and JSON
+//! messages ([`acch_record`]).
+
+use crate::PipelineConfig;
+use crate::frame::FrameHeader;
+use crate::json::ResultJson;
+use crate::node::{NodeError, announce_ready};
+use crate::observe::{Observe, ObserveError, Observer, Streams, lower_priority};
+use crate::stages::{Posed, RegionPayload, ResponsePayload, Seeded, Segmented};
+use crate::wire::Hop;
+use acch_ipc::Control;
+use acch_record::{FrameInfo, FrameTruth, Recorder};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What the recorder wrote and what it missed.
+#[derive(Serialize, Debug, Default)]
+pub struct RecordSummary {
+    /// The MCAP file.
+    pub file: String,
+    /// Frames written.
+    pub frames: u64,
+    /// Masks written.
+    pub masks: u64,
+    /// Responses written.
+    pub responses: u64,
+    /// Final results written.
+    pub results: u64,
+    /// Seeds written.
+    pub seeds: u64,
+    /// Frames missing from the sequence (dropped while the recorder lagged,
+    /// or never captured).
+    pub frames_missed: u64,
+    /// Masks missing from the sequence.
+    pub masks_missed: u64,
+    /// Responses missing from the sequence.
+    pub responses_missed: u64,
+    /// Results missing from the sequence (dropped here, or by a stage).
+    pub results_missed: u64,
+}
+
+/// Writes what it observes into an MCAP file.
+pub struct Recording {
+    rec: Recorder,
+    s: RecordSummary,
+    object: String,
+    views: usize,
+    /// The frame-sized mask of the current region, pasted from its crop.
+    mask: Vec<u8>,
+    response: Vec<f32>,
+    /// Tells a free-running replay a result is recorded (see capture).
+    recorded: Option<Control>,
+}
+
+impl Recording {
+    /// Creates `path` for a run of `object` over a database of `views` views.
+    pub fn create(path: &Path, object: &str, views: usize) -> Result<Self, ObserveError> {
+        Ok(Recording {
+            rec: Recorder::create(path, epoch_offset_ns())?,
+            s: RecordSummary {
+                file: path.display().to_string(),
+                ..Default::default()
+            },
+            object: object.to_owned(),
+            views,
+            mask: Vec::new(),
+            response: Vec::with_capacity(views),
+            recorded: None,
+        })
+    }
+
+    /// Completes the file (its counts as metadata, summary, footer) and
+    /// returns the counts, with `missed` (frames, masks, responses,
+    /// results) from the streams.
+    pub fn finish(self, missed: [u64; 4]) -> Result<RecordSummary, ObserveError> {
+        let Recording { mut rec, mut s, .. } = self;
+        [
+            s.frames_missed,
+            s.masks_missed,
+            s.responses_missed,
+            s.results_missed,
+        ] = missed;
+        let json = serde_json::to_value(&s)?;
+        let meta: BTreeMap<String, String> = json
+            .as_object()
+            .into_iter()
+            .flatten()
+            .map(|(k, v)| (k.clone(), v.to_string()))
+            .collect();
+        rec.metadata("acch.record", meta)?;
+        rec.finish()?;
+        Ok(s)
+    }
+}
+
+impl Observe for Recording {
+    fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<(), ObserveError> {
+        if pixels.is_empty() {
+            return Ok(());
+        }
+        let f = &h.envelope.frame;
+        let info = FrameInfo {
+            sequence: f.sequence,
+            capture_ns: h.envelope.trail.captured_ns,
+            width: f.width,
+            height: f.height,
+            intrinsics: f.intrinsics.to_array(),
+            truth: f.truth.get().map(|t| FrameTruth {
+                theta_deg: t.theta_deg,
+                phi_deg: t.phi_deg,
+                distance: t.distance,
+                camera_from_object: t.camera_from_object,
+            }),
+            arm_world_from_camera: f.arm.get().map(|a| a.world_from_camera),
+        };
+        self.rec.frame(&info, pixels)?;
+        self.s.frames += 1;
+        Ok(())
+    }
+
+    fn region(&mut self, h: &Segmented, payload: &[u8]) -> Result<(), ObserveError> {
+        if let Ok(Some(region)) = RegionPayload::read(h, payload) {
+            let e = h.envelope();
+            let (w, hh) = (e.frame.width, e.frame.height);
+            region.frame_mask(w, hh, &mut self.mask);
+            self.rec
+                .mask(e.frame.sequence, e.trail.captured_ns, w, hh, &self.mask)?;
+            self.s.masks += 1;
+        }
+        Ok(())
+    }
+
+    fn response(&mut self, h: &Posed, payload: &[u8]) -> Result<(), ObserveError> {
+        if let Ok(Some(r)) = ResponsePayload::read(h, self.views, payload) {
+            r.copy_into(&mut self.response);
+            let e = h.envelope();
+            self.rec
+                .response(e.frame.sequence, e.trail.captured_ns, &self.response)?;
+            self.s.responses += 1;
+        }
+        Ok(())
+    }
+
+    fn result(&mut self, m: &Seeded) -> Result<(), ObserveError> {
+        let e = m.envelope();
+        let (seq, t) = (e.frame.sequence, e.trail.captured_ns);
+        self.rec.result(seq, t, &ResultJson::of(&self.object, m))?;
+        self.s.results += 1;
+        if let Some(seed) = m.seed().filter(|_| m.accepted()) {
+            self.rec
+                .seed(seq, t, seed.translation, seed.rotation_xyzw)?;
+            self.s.seeds += 1;
+        }
+        if let Some(n) = &self.recorded {
+            // A free-running replay paces itself on this (see capture).
+            n.notify((seq % acch_record::RECORDED_IDS) as usize)
+                .map_err(acch_ipc::IpcError::from)?;
+        }
+        Ok(())
+    }
+}
+
+/// Runs the recorder process until SIGINT, then drains what is queued,
+/// completes the file and prints its counts.
+pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
+    let path = cfg
+        .record
+        .clone()
+        .ok_or(crate::config::ConfigError::Invalid {
+            key: "record",
+            value: String::new(),
+            why: "the record process needs a file",
+        })?;
+    lower_priority(Observer::Record);
+    let views = cfg.database()?.views().len();
+    let ipc = cfg.ipc("record")?;
+    let mut streams = Streams::open(&ipc, cfg.frame_history)?;
+    let mut out = Recording::create(&path, &cfg.object, views)?;
+    out.recorded = Some(ipc.control_notifier(acch_record::RECORDED_EVENT)?);
+    announce_ready(&ipc, Observer::Record.ready_id())?;
+    streams.observe_until_stopped(&ipc, &mut out)?;
+    let s = out.finish(streams.missed())?;
+    if s.frames_missed + s.results_missed > 0 {
+        tracing::warn!(
+            "record: {} frames and {} results missing from {} (the recorder fell behind or stages dropped them)",
+            s.frames_missed,
+            s.results_missed,
+            path.display()
+        );
+    }
+    eprintln!(
+        "acch record summary: {}",
+        serde_json::to_string(&s).expect("counts serialise")
+    );
+    Ok(s)
+}
+
+/// Unix-epoch time minus CLOCK_MONOTONIC, ns: maps capture times to the
+/// wall-clock times MCAP tools expect.
+pub fn epoch_offset_ns() -> u64 {
+    let wall = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    wall.saturating_sub(acch_ipc::now_ns())
+}

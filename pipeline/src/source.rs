@@ -1,0 +1,474 @@
+//! Frame sources, written once for both executors: the simulated
+//! eye-in-hand camera, a folder of images, and an MCAP recording of an
+//! earlier run. A source makes frames in order; a frame of another size
+//! than the stream's is skipped and named, never passed on.
+
+use crate::frame::FrameHeader;
+use crate::wire::{ArmPose, Intrinsics, Maybe, Truth};
+use acch_capture::{Background, Object, Rendered, Renderer, SceneConfig, Trajectory, ViewPose};
+use acch_ipc::now_ns;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Errors of a frame source; each names the input it concerns.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// The source string is none of the known kinds.
+    #[error("unknown source '{0}': use synthetic, folder:DIR or mcap:FILE")]
+    Unknown(String),
+    /// A folder could not be listed.
+    #[error("reading {}", dir.display())]
+    Folder {
+        /// The folder.
+        dir: PathBuf,
+        /// What the system said.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A folder holds no PNG or JPEG image.
+    #[error("{} holds no images", .0.display())]
+    Empty(PathBuf),
+    /// No image of a folder has the stream's size.
+    #[error("no image in {} is {width}x{height}", dir.display())]
+    NoneOfSize {
+        /// The folder.
+        dir: PathBuf,
+        /// The stream's width.
+        width: u32,
+        /// The stream's height.
+        height: u32,
+    },
+    /// An image could not be read or decoded.
+    #[error("reading {}", path.display())]
+    Image {
+        /// The image.
+        path: PathBuf,
+        /// What the decoder said.
+        #[source]
+        source: image::ImageError,
+    },
+    /// The renderer, the labels or the trajectory refused their input.
+    #[error(transparent)]
+    Capture(#[from] acch_capture::CaptureError),
+    /// A recording could not be read.
+    #[error(transparent)]
+    Record(#[from] acch_record::RecordError),
+}
+
+/// The simulated camera: an object on a table, seen by an eye-in-hand
+/// camera moving over the hemisphere.
+#[derive(Clone, Debug)]
+pub struct SyntheticCamera {
+    /// The object.
+    pub object: Arc<Object>,
+    /// The table and its clutter.
+    pub background: Background,
+    /// Seed of the trajectory and the scene.
+    pub seed: u64,
+    /// Frame width, pixels.
+    pub width: u32,
+    /// Frame height, pixels.
+    pub height: u32,
+    /// Camera distance to the object centre, bounding radii.
+    pub distance: f64,
+    /// Frame rate the trajectory is sampled at (it sets how far the arm
+    /// moves per frame).
+    pub fps: f64,
+    /// Elevation band the trajectory sweeps, degrees.
+    pub elevation_deg: (f64, f64),
+}
+
+impl SyntheticCamera {
+    /// The camera's intrinsics: the default focal length (so the object has
+    /// its trained size in pixels at any resolution), principal point at the
+    /// centre.
+    pub fn intrinsics(&self) -> acch_capture::Intrinsics {
+        sized_intrinsics(self.width, self.height)
+    }
+}
+
+/// Intrinsics of a `width` x `height` synthetic camera with the default
+/// focal length.
+pub fn sized_intrinsics(width: u32, height: u32) -> acch_capture::Intrinsics {
+    acch_capture::Intrinsics {
+        width,
+        height,
+        cx: (width as f64 - 1.0) / 2.0,
+        cy: (height as f64 - 1.0) / 2.0,
+        ..Default::default()
+    }
+}
+
+/// Which frames to read.
+#[derive(Clone, Debug)]
+pub enum SourceSpec {
+    /// The simulated camera.
+    Synthetic(SyntheticCamera),
+    /// PNG and JPEG images of a folder, in name order (or in the order of
+    /// its labels.csv, which also gives their ground truth), cycled.
+    Folder(PathBuf),
+    /// The frames of an `acch run --record` recording, in order.
+    Mcap(PathBuf),
+}
+
+impl SourceSpec {
+    /// The size of the stream: the camera's, the first image's, or the
+    /// recording's first frame's.
+    pub fn frame_size(&self) -> Result<(u32, u32), SourceError> {
+        match self {
+            SourceSpec::Synthetic(c) => Ok((c.width, c.height)),
+            SourceSpec::Folder(dir) => {
+                let first = list_images(dir)?;
+                let p = first
+                    .first()
+                    .ok_or_else(|| SourceError::Empty(dir.clone()))?;
+                image::image_dimensions(p).map_err(|source| SourceError::Image {
+                    path: p.clone(),
+                    source,
+                })
+            }
+            SourceSpec::Mcap(path) => Ok(acch_record::first_frame_size(path)?),
+        }
+    }
+
+    /// Names the source in messages.
+    pub fn describe(&self) -> String {
+        match self {
+            SourceSpec::Synthetic(c) => format!(
+                "simulated camera over {} on background {}",
+                c.object.name(),
+                c.background
+            ),
+            SourceSpec::Folder(d) => format!("folder {}", d.display()),
+            SourceSpec::Mcap(p) => format!("recording {}", p.display()),
+        }
+    }
+}
+
+/// The PNG and JPEG files of `dir`, sorted by name.
+fn list_images(dir: &Path) -> Result<Vec<PathBuf>, SourceError> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|source| SourceError::Folder {
+            dir: dir.to_owned(),
+            source,
+        })?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .is_some_and(|x| x == "png" || x == "jpg" || x == "jpeg")
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+/// The pixels of a produced frame, wherever the source keeps them.
+pub enum Pixels {
+    /// A synthetic frame (its buffer goes back to the renderer).
+    Rendered(Box<Rendered>),
+    /// A decoded image.
+    Owned(Vec<u8>),
+    /// A recorded frame.
+    Replay(Box<acch_record::ReplayFrame>),
+}
+
+impl Pixels {
+    /// Packed RGB.
+    pub fn bytes(&self) -> &[u8] {
+        match self {
+            Pixels::Rendered(f) => f.image.as_raw(),
+            Pixels::Owned(p) => p,
+            Pixels::Replay(f) => f.pixels(),
+        }
+    }
+}
+
+/// A frame from the source, ready to publish.
+pub struct Produced {
+    /// Everything but the time stamps and the shared-memory location.
+    pub header: FrameHeader,
+    /// The pixels.
+    pub pixels: Pixels,
+    /// A recording's own capture time of the frame (its pace), ns.
+    pub recorded_ns: Option<u64>,
+    /// How long the source took to make it, ns.
+    pub taken_ns: u64,
+}
+
+enum Kind {
+    Synthetic {
+        renderer: Box<Renderer>,
+        trajectory: Trajectory,
+        /// The first frame, the template of every render buffer.
+        template: Box<Rendered>,
+        intrinsics: Intrinsics,
+        seed: u64,
+    },
+    Folder {
+        dir: PathBuf,
+        files: Vec<(PathBuf, Option<acch_capture::labels::LabelRow>)>,
+        intrinsics: Intrinsics,
+    },
+    Mcap {
+        path: PathBuf,
+        frames: Box<acch_record::ReplayReader>,
+    },
+}
+
+/// An open source, making frames `first ..` of a `width` x `height` stream.
+pub struct Source {
+    kind: Kind,
+    size: (u32, u32),
+    /// Sequence of the next synthetic or folder frame.
+    next: u64,
+    /// Frames skipped in a row for their size.
+    skipped_in_a_row: u64,
+    /// Frames skipped for their size.
+    pub skipped: u64,
+    /// Render buffers handed back for reuse: boxed, as they travel in
+    /// [`Pixels::Rendered`], so a buffer moves by its pointer.
+    #[allow(clippy::vec_box)]
+    spare: Vec<Box<Rendered>>,
+}
+
+impl Source {
+    /// Opens `spec` for a stream of `size`, starting at frame `first` (a
+    /// restarted capture continues where the run is). A recording is read
+    /// through once first (every CRC): a truncated or corrupt file fails
+    /// here, not halfway through the run.
+    pub fn open(spec: &SourceSpec, size: (u32, u32), first: u64) -> Result<Self, SourceError> {
+        let kind = match spec {
+            SourceSpec::Synthetic(c) => {
+                let renderer = Renderer::new(
+                    SceneConfig {
+                        object: c.object.clone(),
+                        background: c.background,
+                        intrinsics: c.intrinsics(),
+                        effects: Default::default(),
+                    },
+                    c.seed,
+                );
+                let (lo, hi) = c.elevation_deg;
+                let fps = if c.fps > 0.0 { c.fps } else { 30.0 };
+                let trajectory = Trajectory::with_elevation(c.seed, fps, c.distance, lo, hi)?;
+                let template = Box::new(renderer.render(&trajectory.frame(0).view, 0));
+                Kind::Synthetic {
+                    renderer: Box::new(renderer),
+                    trajectory,
+                    template,
+                    intrinsics: Intrinsics::from(&c.intrinsics()),
+                    seed: c.seed,
+                }
+            }
+            SourceSpec::Folder(dir) => {
+                let labels = dir.join("labels.csv");
+                let files: Vec<_> = if labels.exists() {
+                    acch_capture::labels::read_labels(&labels)?
+                        .into_iter()
+                        .map(|r| (dir.join(&r.file), Some(r)))
+                        .collect()
+                } else {
+                    list_images(dir)?.into_iter().map(|p| (p, None)).collect()
+                };
+                if files.is_empty() {
+                    return Err(SourceError::Empty(dir.clone()));
+                }
+                Kind::Folder {
+                    dir: dir.clone(),
+                    files,
+                    intrinsics: Intrinsics::from(&sized_intrinsics(size.0, size.1)),
+                }
+            }
+            SourceSpec::Mcap(path) => {
+                let summary = acch_record::scan(path)?;
+                tracing::info!(
+                    "capture: replaying {} frames of {}x{} from {}",
+                    summary.frames,
+                    summary.width,
+                    summary.height,
+                    path.display()
+                );
+                Kind::Mcap {
+                    frames: Box::new(acch_record::ReplayReader::open(path)?),
+                    path: path.clone(),
+                }
+            }
+        };
+        Ok(Source {
+            kind,
+            size,
+            next: first,
+            skipped_in_a_row: 0,
+            skipped: 0,
+            spare: Vec::new(),
+        })
+    }
+
+    /// Hands a synthetic frame's buffer back, so the next frame reuses it
+    /// (no allocation per frame).
+    pub fn recycle(&mut self, pixels: Pixels) {
+        if let Pixels::Rendered(b) = pixels {
+            self.spare.push(b);
+        }
+    }
+
+    /// The next frame of the stream's size, skipping (and naming) frames of
+    /// another size; `None` when the source has ended. An unreadable input
+    /// is an error.
+    pub fn next_frame(&mut self) -> Result<Option<Produced>, SourceError> {
+        loop {
+            let started = now_ns();
+            let Some(mut p) = self.make()? else {
+                return Ok(None);
+            };
+            let (w, h) = (
+                p.header.envelope.frame.width,
+                p.header.envelope.frame.height,
+            );
+            if (w, h) != self.size {
+                // One odd frame must not stop a camera: skip it, say which.
+                let (want_w, want_h) = self.size;
+                tracing::warn!(
+                    "capture: skipping {} ({w}x{h}, the stream is {want_w}x{want_h})",
+                    self.name_of(&p)
+                );
+                self.skipped += 1;
+                self.skipped_in_a_row += 1;
+                if let Kind::Folder { dir, files, .. } = &self.kind
+                    && self.skipped_in_a_row >= files.len() as u64
+                {
+                    return Err(SourceError::NoneOfSize {
+                        dir: dir.clone(),
+                        width: want_w,
+                        height: want_h,
+                    });
+                }
+                self.recycle(p.pixels);
+                continue;
+            }
+            self.skipped_in_a_row = 0;
+            self.next += 1;
+            p.taken_ns = now_ns().saturating_sub(started);
+            return Ok(Some(p));
+        }
+    }
+
+    /// Names a frame in warnings.
+    fn name_of(&self, p: &Produced) -> String {
+        let seq = p.header.envelope.frame.sequence;
+        match &self.kind {
+            Kind::Synthetic { .. } => format!("synthetic frame {seq}"),
+            Kind::Folder { files, .. } => files[self.position(files.len())].0.display().to_string(),
+            Kind::Mcap { path, .. } => format!("frame {seq} of {}", path.display()),
+        }
+    }
+
+    fn position(&self, files: usize) -> usize {
+        ((self.next + self.skipped) % files as u64) as usize
+    }
+
+    /// Makes the next frame of the source, whatever its size.
+    fn make(&mut self) -> Result<Option<Produced>, SourceError> {
+        let sequence = self.next;
+        let position = self.skipped;
+        match &mut self.kind {
+            Kind::Synthetic {
+                renderer,
+                trajectory,
+                template,
+                intrinsics,
+                seed,
+            } => {
+                let view = trajectory.frame(sequence).view;
+                let mut buffer = self.spare.pop().unwrap_or_else(|| template.clone());
+                renderer.render_into(
+                    &view,
+                    acch_capture::frame_seed(*seed, sequence as usize),
+                    &mut buffer,
+                );
+                let (w, h) = buffer.image.dimensions();
+                let mut header = FrameHeader::rgb(sequence, w, h, *intrinsics);
+                let t = &buffer.truth;
+                let frame = &mut header.envelope.frame;
+                frame.truth = Maybe::Present(Truth {
+                    theta_deg: t.theta_deg,
+                    phi_deg: t.phi_deg,
+                    distance: t.distance,
+                    camera_from_object: t.world_from_camera.inverse().to_cols_array(),
+                });
+                // The simulated arm's forward kinematics: where it put the
+                // camera (the object frame is the world frame here).
+                frame.arm = Maybe::Present(ArmPose {
+                    world_from_camera: t.world_from_camera.to_cols_array(),
+                });
+                Ok(Some(Produced {
+                    header,
+                    pixels: Pixels::Rendered(buffer),
+                    recorded_ns: None,
+                    taken_ns: 0,
+                }))
+            }
+            Kind::Folder {
+                files, intrinsics, ..
+            } => {
+                let n = files.len() as u64;
+                let (path, label) = &files[((sequence + position) % n) as usize];
+                let img = image::open(path)
+                    .map_err(|source| SourceError::Image {
+                        path: path.clone(),
+                        source,
+                    })?
+                    .to_rgb8();
+                let mut header = FrameHeader::rgb(sequence, img.width(), img.height(), *intrinsics);
+                if let Some(l) = label {
+                    let view = ViewPose::new(l.theta_deg, l.phi_deg, l.distance)?;
+                    header.envelope.frame.truth = Maybe::Present(Truth {
+                        theta_deg: l.theta_deg,
+                        phi_deg: l.phi_deg,
+                        distance: l.distance,
+                        camera_from_object: view.camera_from_world().to_cols_array(),
+                    });
+                }
+                Ok(Some(Produced {
+                    header,
+                    pixels: Pixels::Owned(img.into_raw()),
+                    recorded_ns: None,
+                    taken_ns: 0,
+                }))
+            }
+            Kind::Mcap { path, frames } => {
+                let Some(f) = frames.next().transpose()? else {
+                    tracing::info!("capture: end of {}", path.display());
+                    return Ok(None);
+                };
+                let info = &f.info;
+                let mut header = FrameHeader::rgb(
+                    info.sequence,
+                    info.width,
+                    info.height,
+                    Intrinsics::from_array(info.intrinsics),
+                );
+                if let Some(t) = &info.truth {
+                    header.envelope.frame.truth = Maybe::Present(Truth {
+                        theta_deg: t.theta_deg,
+                        phi_deg: t.phi_deg,
+                        distance: t.distance,
+                        camera_from_object: t.camera_from_object,
+                    });
+                }
+                if let Some(a) = info.arm_world_from_camera {
+                    header.envelope.frame.arm = Maybe::Present(ArmPose {
+                        world_from_camera: a,
+                    });
+                }
+                let recorded_ns = Some(info.capture_ns);
+                Ok(Some(Produced {
+                    header,
+                    pixels: Pixels::Replay(Box::new(f)),
+                    recorded_ns,
+                    taken_ns: 0,
+                }))
+            }
+        }
+    }
+}

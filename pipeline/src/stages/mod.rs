@@ -1,0 +1,105 @@
+//! The five processing stages, each written once with its typed header and
+//! payload view beside it. Data flows one way: recognition -> segmentation
+//! -> pose -> confidence -> seeding; every header carries the one before
+//! it, so the final [`Seeded`] holds every stage's part of a frame.
+
+pub mod confidence;
+pub mod pose;
+pub mod recognition;
+pub mod seeding;
+pub mod segmentation;
+
+pub use confidence::{Confidence, Rated, Rating, Verdict};
+pub use pose::{Pose, PoseEstimate, Posed, ResponsePayload};
+pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
+pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};
+pub use segmentation::{RegionPayload, Segmentation, Segmented};
+
+use acch_core::ViewDatabase;
+
+/// What every stage is built with besides the database.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageSettings {
+    /// Frame width, pixels.
+    pub width: u32,
+    /// Frame height, pixels.
+    pub height: u32,
+    /// Known camera distance to the object centre (bounding radii): the
+    /// scale follows from it; `None` reads it off the segmented region.
+    pub distance: Option<f64>,
+    /// Run a database that has no confidence network: every estimate is
+    /// reported as unrated and none is accepted. Without it such a
+    /// database is refused.
+    pub unrated: bool,
+}
+
+impl StageSettings {
+    /// The apparent scale of the object at the known distance, relative to
+    /// the database's training distance.
+    pub fn scale(&self, db: &ViewDatabase) -> Option<f32> {
+        self.distance.map(|d| db.train_distance / d as f32)
+    }
+}
+
+/// Why a stage could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The database has no recognition model.
+    #[error("the database of '{object}' has no recognition model: retrain it with `acch train`")]
+    NoRecognition {
+        /// The database's object.
+        object: String,
+    },
+    /// The database has no confidence network and the run is not unrated.
+    #[error(
+        "the database of '{object}' has no confidence network, so no estimate could be rated: \
+         retrain it with `acch train` (--confidence-scenes > 0), or run it unrated (--unrated: \
+         estimates are reported, none is accepted, no seed is published)"
+    )]
+    NoConfidence {
+        /// The database's object.
+        object: String,
+    },
+    /// The recognition model is unusable.
+    #[error(transparent)]
+    Recognition(#[from] acch_recognition::RecognitionError),
+    /// The segmenter refused the frame size.
+    #[error(transparent)]
+    Segmentation(#[from] acch_segmentation::SegmentationError),
+    /// The database cannot estimate poses.
+    #[error(transparent)]
+    Pose(#[from] acch_pose::PoseError),
+    /// The confidence network is unusable.
+    #[error(transparent)]
+    Confidence(#[from] acch_confidence::ConfidenceError),
+    /// The fusion filter's configuration is invalid.
+    #[error(transparent)]
+    Fusion(#[from] acch_seeding::FusionError),
+}
+
+/// The five stages of one pipeline, built from one database.
+pub struct Stages {
+    /// Quantise + window scan.
+    pub recognition: Recognition,
+    /// Region growing.
+    pub segmentation: Segmentation,
+    /// ACCH pose.
+    pub pose: Pose,
+    /// Confidence network.
+    pub confidence: Confidence,
+    /// Seed and fusion.
+    pub seeding: Seeding,
+}
+
+impl Stages {
+    /// Every stage for `db` with `settings`.
+    pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
+        Ok(Stages {
+            recognition: Recognition::new(db, settings)?,
+            segmentation: Segmentation::new(db, settings)?,
+            pose: Pose::new(db, settings)?,
+            confidence: Confidence::new(db, settings)?,
+            seeding: Seeding::new(db, settings)?,
+        })
+    }
+}

@@ -1,0 +1,232 @@
+//! Recognition: quantise the frame with the database's palette, scan the
+//! cell grid for the object's window.
+//!
+//! Its payload ([`RecognitionPayload`]) is the frame's palette indices (one
+//! byte per pixel) followed, when the object is found, by the colour counts
+//! segmentation reads ([`RegionCounts`]: the cells of the search area and
+//! the ring's sums), so later stages neither touch the pixels nor count
+//! them again.
+
+use super::{BuildError, StageSettings};
+use crate::frame::FrameHeader;
+use crate::stage::Stage;
+use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, StageId};
+use acch_core::{IndexView, Palette, ViewDatabase};
+use acch_ipc::ZeroCopySend;
+use acch_recognition::{
+    CellRect, CountLayout, Detection, Detector, RecognitionModel, RegionCounts,
+};
+
+/// A rectangle of grid cells, `[x0, x1) x [y0, y1)`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ZeroCopySend)]
+pub struct Cells {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl From<CellRect> for Cells {
+    fn from(r: CellRect) -> Self {
+        Cells {
+            x0: r.x0,
+            y0: r.y0,
+            x1: r.x1,
+            y1: r.y1,
+        }
+    }
+}
+
+impl From<Cells> for CellRect {
+    fn from(c: Cells) -> Self {
+        CellRect {
+            x0: c.x0,
+            y0: c.y0,
+            x1: c.x1,
+            y1: c.y1,
+        }
+    }
+}
+
+/// The object's window in a frame.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct Window {
+    /// The window in pixels, cut to the frame.
+    pub window: PixelRect,
+    /// The window in cells, cut to the frame.
+    pub cells: Cells,
+    /// Side in cells of the scan's window, before it was cut to the frame.
+    pub window_cells: u32,
+    /// Its vote, in [0, 1].
+    pub score: f32,
+    /// The model's threshold the score reached.
+    pub threshold: f32,
+    /// Scale (apparent size relative to training) the window was sized for.
+    pub scale: f32,
+    /// Whether the window hangs over the frame border.
+    pub truncated: bool,
+    /// Segmentation's search area: the payload holds its colour counts.
+    pub search: Cells,
+}
+
+impl Window {
+    /// The detection as the algorithms take it.
+    pub fn detection(&self) -> Detection {
+        Detection {
+            window: self.window.into(),
+            cells: self.cells.into(),
+            score: self.score,
+            threshold: self.threshold,
+            scale: self.scale,
+            truncated: self.truncated,
+            window_cells: self.window_cells,
+        }
+    }
+}
+
+/// Recognition's header. `detection`: `Done` when a window reached the
+/// model's threshold, `Nothing` when none did (the object is not in view).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct Recognised {
+    /// The frame, its trail and reads.
+    pub envelope: Envelope,
+    /// The object's window.
+    pub detection: Outcome<Window>,
+}
+
+impl Hop for Recognised {
+    fn envelope(&self) -> &Envelope {
+        &self.envelope
+    }
+    fn envelope_mut(&mut self) -> &mut Envelope {
+        &mut self.envelope
+    }
+}
+
+/// Recognition's payload, read in place.
+pub struct RecognitionPayload<'a> {
+    /// The frame's palette indices.
+    pub indices: IndexView<'a>,
+    /// The colour counts of the detection's search area (`None` when the
+    /// object was not found).
+    pub counts: Option<RegionCounts<'a>>,
+}
+
+impl<'a> RecognitionPayload<'a> {
+    /// Reads the payload of `header` from `bytes`, for a grid of `layout`.
+    pub fn read(header: &Recognised, layout: CountLayout, bytes: &'a [u8]) -> Result<Self, Fault> {
+        let f = &header.envelope.frame;
+        let n = f.width as usize * f.height as usize;
+        let (indices, rest) = bytes.split_at_checked(n).ok_or(Fault::Payload)?;
+        let indices = IndexView::new(f.width, f.height, indices).ok_or(Fault::Payload)?;
+        let counts = match header.detection {
+            Outcome::Done(w) => {
+                let search = CellRect::from(w.search);
+                let len = RegionCounts::published_len(layout, search);
+                let bytes = rest.get(..len).ok_or(Fault::Payload)?;
+                Some(RegionCounts::from_bytes(layout, search, bytes).ok_or(Fault::Payload)?)
+            }
+            _ => None,
+        };
+        Ok(RecognitionPayload { indices, counts })
+    }
+}
+
+/// The recognition stage.
+pub struct Recognition {
+    palette: Palette,
+    detector: Detector,
+    scale: Option<f32>,
+    size: (u32, u32),
+}
+
+impl Recognition {
+    /// The stage for `db` on frames of `settings`.
+    pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
+        let model = recognition_model(db)?;
+        Ok(Recognition {
+            palette: db.palette.clone(),
+            detector: Detector::new(model, settings.width, settings.height)?,
+            scale: settings.scale(db),
+            size: (settings.width, settings.height),
+        })
+    }
+
+    /// The detector (heat map and best score of the last frame).
+    pub fn detector(&self) -> &Detector {
+        &self.detector
+    }
+
+    fn pixels(&self) -> usize {
+        self.size.0 as usize * self.size.1 as usize
+    }
+}
+
+/// The database's recognition model, or why there is none.
+pub(super) fn recognition_model(db: &ViewDatabase) -> Result<RecognitionModel, BuildError> {
+    RecognitionModel::from_database(db)?.ok_or_else(|| BuildError::NoRecognition {
+        object: db.object.clone(),
+    })
+}
+
+impl Stage for Recognition {
+    const ID: StageId = StageId::Recognition;
+    type Input = FrameHeader;
+    type Part = Outcome<Window>;
+    type Output = Recognised;
+
+    fn max_payload(&self) -> usize {
+        // Room for the counts of every cell: a search area may fill the grid.
+        let layout = self.detector.count_layout();
+        self.pixels() + RegionCounts::published_len(layout, layout.all_cells())
+    }
+
+    fn process(
+        &mut self,
+        frame: &FrameHeader,
+        rgb: &[u8],
+        out: &mut [u8],
+    ) -> Result<Outcome<Window>, Fault> {
+        let f = &frame.envelope.frame;
+        if (f.width, f.height) != self.size || rgb.len() != 3 * self.pixels() {
+            return Err(Fault::FrameSize);
+        }
+        let (w, h) = self.size;
+        // Quantised straight into the output: later stages read these
+        // indices where they are.
+        let (index_out, counts_out) = out.split_at_mut(self.pixels());
+        self.palette.quantise_into_slice(rgb, index_out);
+        let index = IndexView::new(w, h, index_out).ok_or(Fault::FrameSize)?;
+        let Some(d) = self.detector.detect(index, self.scale) else {
+            return Ok(Outcome::Nothing);
+        };
+        let region = self.detector.region_counts(&d).ok_or(Fault::Payload)?;
+        if !region.publish(counts_out) {
+            return Err(Fault::Payload);
+        }
+        Ok(Outcome::Done(Window {
+            window: d.window.into(),
+            cells: d.cells.into(),
+            window_cells: d.window_cells,
+            score: d.score,
+            threshold: d.threshold,
+            scale: d.scale,
+            truncated: d.truncated,
+            search: region.search().into(),
+        }))
+    }
+
+    fn output(frame: &FrameHeader, detection: Outcome<Window>) -> Recognised {
+        Recognised {
+            envelope: frame.envelope,
+            detection,
+        }
+    }
+}
