@@ -366,7 +366,18 @@ fn frames_of_another_size_mid_stream_are_skipped_and_the_rest_estimated() {
     )
     .unwrap();
     let n = rows.len() as u64;
-    let odd = rows.len() / 3;
+    let small: Vec<bool> = (0..rows.len()).map(|k| k % 3 == 2).collect();
+    // The folder is cycled until n frames of the stream's size went out:
+    // the frames it skips on the way.
+    let (mut sent, mut expect_skipped, mut k) = (0u64, 0u64, 0usize);
+    while sent < n {
+        if small[k % rows.len()] {
+            expect_skipped += 1;
+        } else {
+            sent += 1;
+        }
+        k += 1;
+    }
     let out = folder_run(dir.path(), &mixed, n as u32);
     let err = String::from_utf8_lossy(&out.stderr);
     eprintln!("{err}");
@@ -379,13 +390,34 @@ fn frames_of_another_size_mid_stream_are_skipped_and_the_rest_estimated() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("run.json")).unwrap())
             .unwrap();
     eprintln!(
-        "results {} of {n}, accepted {}, wrong {}",
-        s["results"], s["accepted"], s["accepted_wrong"]
+        "results {} of {n}, estimated {}, accepted {}, rejected {}, wrong {}",
+        s["results"], s["estimated"], s["accepted"], s["rejected"], s["accepted_wrong"]
     );
-    assert!(
-        err.contains("002.png"),
-        "the skipped frame is not named: {err}"
+    for (k, _) in small.iter().enumerate().filter(|(_, s)| **s) {
+        let name = format!("{k:03}.png");
+        assert!(
+            err.contains(&name),
+            "the skipped {name} is not named: {err}"
+        );
+    }
+    // The rest estimated: every frame of the stream's size has a result,
+    // every one of them an estimate, each rated one way or the other.
+    assert_eq!(s["results"], n, "{s}");
+    assert_eq!(s["estimated"], n, "{s}");
+    assert_eq!(
+        s["accepted"].as_u64().unwrap() + s["rejected"].as_u64().unwrap(),
+        n,
+        "{s}"
     );
-    assert!(s["results"].as_u64().unwrap() >= n - odd as u64, "{s}");
     assert_eq!(s["accepted_wrong"], 0, "{s}");
+    assert_eq!(s["faulted"], 0, "{s}");
+    // The skips are counted where they happened, not only logged.
+    let capture = s["stage_counters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["stage"] == "capture")
+        .unwrap_or_else(|| panic!("no capture counters: {s}"));
+    assert_eq!(capture["skipped_size"], expect_skipped, "{capture}");
+    assert_eq!(capture["sent"], n, "{capture}");
 }

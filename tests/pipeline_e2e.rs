@@ -1,7 +1,11 @@
 //! End to end: `acch run` starts every stage as a real process; an
 //! independent subscriber (Python `eclipse-zenoh`, tests/pipeline_subscriber.py)
-//! receives the results and seeds over zenoh and checks the seeds' rotation
-//! against the renderer's ground truth carried in each result.
+//! receives the results and seeds over zenoh, checks every verdict against
+//! its own threshold and seeds, and the seeds' rotation against the
+//! renderer's ground truth carried in each result. The camera passes below
+//! the database's lowest slice over a table cluttered with distractors in
+//! the object's colours (trajectory seed 20: its first three seconds cross
+//! the slice), so real rejections are among the frames.
 
 mod common;
 
@@ -50,7 +54,7 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
     std::fs::write(
         &config,
         format!(
-            "frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{pipe_port}\"]\nconnect = [\"tcp/127.0.0.1:{sub_port}\"]\n"
+            "frames = {frames}\nfps = 30.0\nelevation_deg = [20.0, 90.0]\nbackground = \"clutter-similar\"\nseed = 20\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{pipe_port}\"]\nconnect = [\"tcp/127.0.0.1:{sub_port}\"]\n"
         ),
     )
     .unwrap();
@@ -82,6 +86,8 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
         summary["results"], frames,
         "every frame gets a result: {summary}"
     );
+    // Every frame was read by recognition, in place.
+    assert_eq!(summary["frame_reads"], frames, "{summary}");
     assert_eq!(
         summary["frame_reads"], summary["frame_reads_in_place"],
         "{summary}"
@@ -109,10 +115,17 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
     let r: serde_json::Value = serde_json::from_str(&report).unwrap();
     eprintln!("subscriber: {r}");
     assert_eq!(r["results"], frames, "{r}");
-    assert_eq!(r["rejected_with_seed"], 0, "{r}");
+    // Frames really were rejected, and every verdict holds up.
+    assert!(
+        r["rejected"].as_u64().unwrap() > 0,
+        "no frame was rejected: {r}"
+    );
+    assert_eq!(r["bad_verdicts"], serde_json::json!([]), "{r}");
+    assert_eq!(r["seeds_without_acceptance"], serde_json::json!([]), "{r}");
     let seeds = r["seeds"].as_u64().unwrap();
     assert_eq!(seeds, r["accepted"].as_u64().unwrap(), "{r}");
-    assert!(seeds >= frames / 2, "too few seeds: {r}");
+    assert_eq!(seeds, summary["accepted"].as_u64().unwrap(), "{r}");
+    assert!(seeds >= frames / 4, "too few seeds: {r}");
     let compared = r["compared"].as_u64().unwrap();
     let within = r["within_15deg"].as_u64().unwrap();
     assert_eq!(compared, seeds, "{r}");

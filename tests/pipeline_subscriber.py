@@ -60,12 +60,33 @@ def main():
         if r.get("fused") is not None and r.get("truth") is not None
     ]
     accepted = sum(1 for r in results.values() if r["accepted"])
-    rejected_with_seed = sum(1 for r in results.values() if not r["accepted"] and r.get("seed") is not None)
+    # Each verdict against its own threshold, from the message alone: an
+    # accepted result is rated at or above the threshold and seeded (on the
+    # seed topic too); a rejected one is rated below it and has no seed,
+    # there or on the seed topic.
+    bad_verdicts = []
+    rejected = 0
+    for seq, r in results.items():
+        conf, thr = r.get("confidence"), r.get("threshold")
+        if r["accepted"]:
+            ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
+                  and conf >= thr and r.get("seed") is not None and seq in seeds)
+        elif r.get("rating") == "rejected":
+            rejected += 1
+            ok = (conf is not None and thr is not None and conf < thr
+                  and r.get("seed") is None and seq not in seeds)
+        else:
+            ok = r.get("seed") is None and seq not in seeds
+        if not ok:
+            bad_verdicts.append(seq)
+    seeds_without_acceptance = sorted(s for s in seeds if not results.get(s, {}).get("accepted"))
     print(json.dumps({
         "results": len(results),
         "seeds": len(seeds),
         "accepted": accepted,
-        "rejected_with_seed": rejected_with_seed,
+        "rejected": rejected,
+        "bad_verdicts": bad_verdicts,
+        "seeds_without_acceptance": seeds_without_acceptance,
         "compared": len(errors),
         "within_15deg": sum(1 for e in errors if e <= 15.0),
         "median_err_deg": sorted(errors)[len(errors) // 2] if errors else None,

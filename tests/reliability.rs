@@ -1,7 +1,9 @@
 //! Reliability of the multi-process pipeline (`acch run`): every stage is
 //! killed with SIGKILL in turn during one run and must be restarted by the
-//! launcher with the run still delivering results for >= 90 % of the frames
-//! and no accepted pose beyond the failure thresholds; a stage stopped
+//! launcher with the run still delivering results for >= 90 % of the frames,
+//! every delivered result the very one an undisturbed run of the same
+//! frames gives (the camera also passes below the database, so rejections
+//! are among them); a stage stopped
 //! with SIGSTOP for seconds must leave bounded memory upstream and counted
 //! drops, and the run must recover; the shared memory and sockets of a run
 //! are the user's own.
@@ -22,7 +24,7 @@ use std::time::{Duration, Instant};
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// Starts `acch run` on `config`; stderr lines arrive on the receiver (and
-/// are echoed for the test log).
+/// are echoed for the test log). Every result goes to `results.jsonl`.
 fn launch(dir: &Path, config: &str) -> (Guard, Receiver<String>, PathBuf) {
     let path = dir.join("pipeline.toml");
     std::fs::write(&path, config).unwrap();
@@ -32,6 +34,8 @@ fn launch(dir: &Path, config: &str) -> (Guard, Receiver<String>, PathBuf) {
         .arg(&path)
         .arg("--json")
         .arg(&json)
+        .arg("--results")
+        .arg(dir.join("results.jsonl"))
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
@@ -120,15 +124,66 @@ const STAGES: [&str; 6] = [
     "capture",
 ];
 
+/// The results of a `--results` file by sequence, without what depends on
+/// the run rather than the frame: time stamps, and the pose fused over the
+/// frames before (a restarted seeding stage starts its filter anew, a
+/// dropped frame is missing from it).
+fn per_frame(path: &Path) -> HashMap<u64, serde_json::Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut r: serde_json::Value = serde_json::from_str(l).unwrap();
+            let o = r.as_object_mut().unwrap();
+            for k in ["stamp", "trail", "fused"] {
+                o.remove(k);
+            }
+            if let Some(seed) = o.get_mut("seed").and_then(|s| s.as_object_mut()) {
+                seed.remove("stamp");
+            }
+            (r["sequence"].as_u64().unwrap(), r)
+        })
+        .collect()
+}
+
 #[test]
-fn every_stage_killed_in_turn_is_restarted_and_no_wrong_pose_is_reported() {
+fn every_stage_killed_in_turn_is_restarted_and_every_result_is_the_undisturbed_one() {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let frames = 900u64;
+    // Below the database's lowest slice too: frames that get rejected.
+    let scene = "elevation_deg = [20.0, 90.0]\n";
+    // The undisturbed run of the same frames: the stages chained in one
+    // process (bit-identical to the processes: tests/executors.rs), as fast
+    // as they go.
+    let base = dir.path().join("base");
+    std::fs::create_dir(&base).unwrap();
+    std::fs::write(
+        base.join("pipeline.toml"),
+        format!(
+            "{scene}frames = {frames}\nfps = 0.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            free_port()
+        ),
+    )
+    .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args(["run", "--in-process", "--config"])
+        .arg(base.join("pipeline.toml"))
+        .arg("--results")
+        .arg(base.join("results.jsonl"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let undisturbed = per_frame(&base.join("results.jsonl"));
+    assert_eq!(undisturbed.len() as u64, frames);
     let (mut run, rx, json) = launch(
         dir.path(),
         &format!(
-            "frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            "{scene}frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
             free_port()
         ),
     );
@@ -185,11 +240,40 @@ fn every_stage_killed_in_turn_is_restarted_and_no_wrong_pose_is_reported() {
         "only {results} of {frames} frames delivered"
     );
     assert_eq!(s["duplicates"], 0);
-    assert!(s["accepted"].as_u64().unwrap() >= results / 2, "{s}");
     assert_eq!(
         s["accepted_wrong"], 0,
         "accepted poses beyond the failure thresholds: {}",
         s["accepted_wrong_sequences"]
+    );
+    // Every delivered result is the undisturbed one, bit for bit: no frame
+    // mixed up with another through the restarts, none half-processed.
+    let delivered = per_frame(&dir.path().join("results.jsonl"));
+    assert_eq!(delivered.len() as u64, results);
+    let differ: Vec<u64> = delivered
+        .iter()
+        .filter(|(seq, r)| undisturbed.get(seq) != Some(r))
+        .map(|(seq, _)| *seq)
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "results differ from the undisturbed run: {differ:?}"
+    );
+    let rejected = delivered
+        .values()
+        .filter(|r| r["rating"] == "rejected")
+        .count();
+    let accepted = delivered.values().filter(|r| r["accepted"] == true).count();
+    eprintln!(
+        "delivered {} results: {accepted} accepted, {rejected} rejected",
+        delivered.len()
+    );
+    assert!(
+        rejected > 0,
+        "no rejected frame: the hard segment is missing"
+    );
+    assert!(
+        accepted as u64 >= results / 4,
+        "{accepted} accepted of {results}"
     );
 }
 

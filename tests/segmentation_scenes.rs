@@ -46,6 +46,7 @@ fn renderer(object: &Arc<Object>, background: Background, seed: u64, shift_px: f
             background,
             intrinsics,
             effects: Default::default(),
+            textures: Default::default(),
         },
         seed,
     )

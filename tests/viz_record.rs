@@ -225,7 +225,11 @@ fn recordings_open_in_the_reference_tools_and_replay_to_the_same_poses() {
         (24.0..=36.0).contains(&fps),
         "recorded pace 30 fps, got {fps}: {c}"
     );
-    for (x, y) in ra.iter().zip(&results(&mcap_c)) {
+    let rc = results(&mcap_c);
+    // A short or empty replay must not pass for an identical one.
+    assert_eq!(rc.len(), ra.len(), "the paced replay lost frames");
+    assert_eq!(c["results"], frames, "{c}");
+    for (x, y) in ra.iter().zip(&rc) {
         assert_eq!(
             pose(x),
             pose(y),

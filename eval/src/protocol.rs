@@ -4,7 +4,7 @@
 
 use crate::EvalError;
 use acch_capture::{
-    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, ViewPose,
+    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose,
 };
 use acch_confidence::Tolerance;
 use acch_core::ViewDatabase;
@@ -66,9 +66,18 @@ pub fn progress(len: u64, message: &str) -> ProgressBar {
     bar
 }
 
-/// A renderer of `object` on `background` with the default intrinsics.
-pub fn renderer(object: Arc<Object>, background: Background, scene_seed: u64) -> Renderer {
-    Renderer::new(SceneConfig::new(object, background), scene_seed)
+/// A renderer of `object` on `background` with the default intrinsics and
+/// the table textures of `textures`.
+pub fn renderer(
+    object: Arc<Object>,
+    background: Background,
+    textures: TextureSet,
+    scene_seed: u64,
+) -> Renderer {
+    Renderer::new(
+        SceneConfig::new(object, background).with_textures(textures),
+        scene_seed,
+    )
 }
 
 /// Renders `views` in parallel, in order, with a progress bar; view `i`

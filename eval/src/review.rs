@@ -5,7 +5,7 @@
 use crate::EvalError;
 use crate::protocol::{self, scene_seed};
 use crate::sequence::{SequenceOptions, errors, fails};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, Renderer, ViewPose};
+use acch_capture::{Background, DEFAULT_DISTANCE, Object, Renderer, TextureSet, ViewPose};
 use acch_core::ViewDatabase;
 use acch_pipeline::Chain;
 use acch_pose::phi_error;
@@ -210,7 +210,8 @@ pub fn run_episode(
     ambiguity: &[f32],
 ) -> Episode {
     let scene = scene_seed(o.seed, b, i, 2);
-    let renderer: Renderer = protocol::renderer(object.clone(), background, scene);
+    let renderer: Renderer =
+        protocol::renderer(object.clone(), background, TextureSet::HeldOut, scene);
     let mut view = start;
     // The arm's own record: absolute elevation, azimuth relative to the start.
     let mut arm = (start.theta_deg, 0.0);

@@ -52,9 +52,9 @@ use crate::protocol::{self, scene_seed};
 use crate::review::{
     Policy, ReviewRow, review_starts, run_episode, summarise_review, view_ambiguity,
 };
-use crate::train::{self, DEFAULT_CONFIDENCE_KIND, RenderedTraining};
+use crate::train::{self, RenderedTraining};
 use crate::{EvalError, write_json};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, Trajectory, ViewPose};
+use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, Trajectory, ViewPose};
 use acch_core::ViewDatabase;
 use acch_pipeline::stages::Fusion;
 use acch_pipeline::stages::seeding::KNOWN_DISTANCE_RELATIVE_SIGMA;
@@ -389,21 +389,17 @@ impl SequenceReport {
 }
 
 /// Table 2's database: paper grid on the plain background, recognition
-/// model, confidence network of the default kind.
+/// model, confidence network of the input chosen on validation scenes.
 fn train(
     object: &Arc<Object>,
     config: &TrainConfig,
     scenes: usize,
 ) -> Result<ViewDatabase, EvalError> {
     let mut db = train::train_rendered(object, config, &RenderedTraining::default())?;
-    let samples = train::confidence_samples(
-        &db,
-        object,
-        scenes,
-        train::CONFIDENCE_SEED_BASE,
-        DEFAULT_DISTANCE,
-    )?;
-    train::train_confidence(&mut db, &samples, DEFAULT_CONFIDENCE_KIND, 0)?;
+    let (choice, model, _) =
+        train::choose_confidence_input(&db, object, scenes, DEFAULT_DISTANCE, 0)?;
+    tracing::info!("{choice}");
+    model.store(&mut db);
     Ok(db)
 }
 
@@ -419,7 +415,7 @@ fn run_trajectory(
     bar: &ProgressBar,
 ) -> Result<Vec<FrameRecord>, EvalError> {
     let scene = scene_seed(o.seed, b, t, 1);
-    let renderer = protocol::renderer(object.clone(), background, scene);
+    let renderer = protocol::renderer(object.clone(), background, TextureSet::HeldOut, scene);
     let (lo, hi) = o.theta_band;
     let trajectory = Trajectory::with_elevation(scene, o.fps, DEFAULT_DISTANCE, lo, hi)?;
     // A new trajectory: nothing carries over from the last one.

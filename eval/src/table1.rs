@@ -8,7 +8,9 @@
 use crate::protocol::{self, PAPER_GRID, fails};
 use crate::train::train_views;
 use crate::{EvalError, write_json};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, Rendered, ViewPose, ViewSpec};
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Rendered, TextureSet, ViewPose, ViewSpec,
+};
 use acch_core::{HistogramKind, IndexImage, ViewDatabase};
 use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
 use acch_pipeline::wire::{Intrinsics, Outcome, PixelRect};
@@ -113,7 +115,7 @@ pub fn table1(
     }
     let start = Instant::now();
     let plain: Background = "plain".parse()?;
-    let renderer = protocol::renderer(object.clone(), plain, o.seed);
+    let renderer = protocol::renderer(object.clone(), plain, TextureSet::Training, o.seed);
     let grid: ViewSpec = PAPER_GRID.parse()?;
     let train_views_list = grid.views(DEFAULT_DISTANCE, 0);
     let test_views = off_grid_random(&grid, o.n, o.seed);

@@ -18,13 +18,14 @@
 //! view, and the time of recognition + segmentation.
 
 use crate::protocol::{self, fails};
-use crate::train::{self, DEFAULT_CONFIDENCE_KIND, DEFAULT_CONFIDENCE_SCENES, RenderedTraining};
+use crate::train::{
+    self, ConfidenceChoice, DEFAULT_CONFIDENCE_SCENES, RenderedTraining, kind_name,
+};
 use crate::{EvalError, write_json};
 use acch_capture::{
-    Background, DEFAULT_DISTANCE, Intrinsics, Object, Rendered, Renderer, SceneConfig, ViewPose,
-    ViewSpec,
+    Background, DEFAULT_DISTANCE, Intrinsics, Object, Rendered, Renderer, SceneConfig, TextureSet,
+    ViewPose, ViewSpec,
 };
-use acch_confidence::{Kind, Model as ConfidenceModel};
 use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
 use acch_pipeline::wire::{Outcome, PixelRect, StageId};
 use acch_pipeline::{Hop, Stage, StageSettings};
@@ -109,9 +110,15 @@ pub struct Table2Report {
     pub object: String,
     /// Test poses per background.
     pub n: usize,
+    /// The table textures of the test scenes (`held-out`: none of the
+    /// confidence network's training scenes shows them).
+    pub textures: String,
     /// One row per background.
     pub rows: Vec<Table2Row>,
-    /// Both network inputs, over every estimate of every row.
+    /// How the deployed network's input was chosen, on validation scenes.
+    pub confidence_choice: ConfidenceChoice,
+    /// Both network inputs, over every estimate of every row (the chosen
+    /// one first).
     pub confidence: Vec<ConfidenceSummary>,
     /// The network's threshold.
     pub confidence_threshold: f32,
@@ -132,43 +139,41 @@ pub struct Table2Report {
     pub reliability: Vec<(String, Vec<acch_confidence::Bin>)>,
 }
 
-fn kind_name(kind: Kind) -> &'static str {
-    match kind {
-        Kind::Features => "features",
-        Kind::Response => "response",
-    }
+/// Options of table 2.
+#[derive(Clone, Copy, Debug)]
+pub struct Table2Options {
+    /// Random test poses per background.
+    pub n: usize,
+    /// Seed of the test poses and scenes.
+    pub seed: u64,
+    /// The table textures of the test scenes: held out from the confidence
+    /// network's training scenes, or the very ones it was trained on.
+    pub textures: TextureSet,
 }
 
-/// Runs table 2 for `object`: `n` random poses per background from `seed`.
+/// Runs table 2 for `object`.
 pub fn table2(
     object: Arc<Object>,
-    n: usize,
-    seed: u64,
+    options: &Table2Options,
     config: &TrainConfig,
 ) -> Result<Table2Report, EvalError> {
+    let Table2Options { n, seed, textures } = *options;
     if n == 0 {
         return Err(EvalError::Input("--n must be at least 1".into()));
     }
     let start = Instant::now();
     let mut db = train::train_rendered(&object, config, &RenderedTraining::default())?;
-    // Both network inputs learn from the same scenes (seeds disjoint from
-    // the test scenes); the default one rates the rows.
-    let samples = train::confidence_samples(
+    // The deployed recipe: both inputs trained on the confidence-training
+    // scenes, the one with the higher AUC on the validation scenes kept;
+    // the other is measured beside it.
+    let (choice, model, alt_model) = train::choose_confidence_input(
         &db,
         &object,
         DEFAULT_CONFIDENCE_SCENES,
-        train::CONFIDENCE_SEED_BASE,
         DEFAULT_DISTANCE,
+        0,
     )?;
-    let mut alt_db = db.clone();
-    let alt_kind = match DEFAULT_CONFIDENCE_KIND {
-        Kind::Features => Kind::Response,
-        Kind::Response => Kind::Features,
-    };
-    train::train_confidence(&mut db, &samples, DEFAULT_CONFIDENCE_KIND, 0)?;
-    train::train_confidence(&mut alt_db, &samples, alt_kind, 0)?;
-    let alt_model = ConfidenceModel::load(&alt_db)?;
-    drop(alt_db);
+    model.store(&mut db);
     let recognition = RecognitionModel::from_database(&db)?
         .ok_or_else(|| EvalError::Input("the trained database has no recognition model".into()))?;
     let train_seconds = start.elapsed().as_secs_f64();
@@ -207,7 +212,7 @@ pub fn table2(
     };
     let mut sequence = 0u64;
     for (name, background) in protocol::backgrounds() {
-        let scenes = render_scenes(&object, background, &views, seed, name);
+        let scenes = render_scenes(&object, (background, textures), &views, seed, name);
         let (mut sum_iou, mut sum_phi, mut sum_theta) = (0f64, 0f64, 0f64);
         let (mut estimated, mut failures, mut roi_failures, mut true_failures) = (0, 0, 0, 0);
         let (mut not_found, mut false_detections) = (0, 0);
@@ -340,13 +345,15 @@ pub fn table2(
     };
     let main_scores: Vec<f32> = rated.iter().map(|r| r.0).collect();
     let alt_scores: Vec<f32> = rated.iter().map(|r| r.1).collect();
-    let (main_name, alt_name) = (kind_name(DEFAULT_CONFIDENCE_KIND), kind_name(alt_kind));
+    let (main_name, alt_name) = (kind_name(model.kind()), kind_name(alt_model.kind()));
     let frames = frames.max(1) as f64;
     Ok(Table2Report {
         protocol: "table2",
         object: object.name().to_owned(),
         n,
+        textures: textures.to_string(),
         rows,
+        confidence_choice: choice,
         confidence: vec![
             summarise(main_name, &main_scores),
             summarise(alt_name, &alt_scores),
@@ -411,8 +418,8 @@ impl Table2Report {
     pub fn print(&self) {
         let r = self;
         println!(
-            "table2 · {} · {} random poses per background · recognition threshold {:.3} (training score {:.3}) · confidence threshold {}",
-            r.object, r.n, r.threshold, r.train_score, r.confidence_threshold
+            "table2 · {} · {} random poses per background, {} table textures · recognition threshold {:.3} (training score {:.3}) · confidence threshold {}",
+            r.object, r.n, r.textures, r.threshold, r.train_score, r.confidence_threshold
         );
         println!(
             "{:<10} {:>4} {:>6} {:>8} {:>8} {:>8} {:>5} | {:>8} {:>8} {:>8} {:>8} | {:>9} {:>9} {:>6} {:>6}",
@@ -452,6 +459,7 @@ impl Table2Report {
                 row.ms_detect_segment,
             );
         }
+        println!("{}", r.confidence_choice);
         for c in &r.confidence {
             println!(
                 "confidence from {:<8}: ROC AUC {:.3}, accepted {:.1} %, failures among accepted {:.1} %, calibration error {:.3}",
@@ -492,14 +500,14 @@ impl Table2Report {
 /// from image to image.
 fn render_scenes(
     object: &Arc<Object>,
-    background: Background,
+    (background, textures): (Background, TextureSet),
     views: &[ViewPose],
     seed: u64,
     name: &str,
 ) -> Vec<(Rendered, Rendered)> {
     let bar = protocol::progress(views.len() as u64, &format!("background {name}"));
-    let shared =
-        (!background.has_clutter()).then(|| protocol::renderer(object.clone(), background, seed));
+    let shared = (!background.has_clutter())
+        .then(|| protocol::renderer(object.clone(), background, textures, seed));
     let mut far = Intrinsics::default();
     far.cx += OUT_OF_VIEW_PX;
     let out = views
@@ -511,7 +519,7 @@ fn render_scenes(
             let renderer = match &shared {
                 Some(r) => r,
                 None => {
-                    own = protocol::renderer(object.clone(), background, scene_seed);
+                    own = protocol::renderer(object.clone(), background, textures, scene_seed);
                     &own
                 }
             };

@@ -6,7 +6,7 @@
 
 use crate::EvalError;
 use crate::protocol::{self, PAPER_GRID};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, ViewPose, ViewSpec};
+use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, ViewPose, ViewSpec};
 use acch_confidence::Kind;
 use acch_core::ViewDatabase;
 use acch_pipeline::stages::{Confidence, Stages};
@@ -14,6 +14,7 @@ use acch_pipeline::{Chain, StageSettings};
 use acch_pose::train::{LabelledView, TrainConfig, build_database};
 use acch_recognition::{RecognitionModel, RecognitionParams};
 use rayon::prelude::*;
+use serde;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -30,9 +31,31 @@ pub const CONFIDENCE_SEED_BASE: u64 = 1_000_000;
 /// names so that a changed recipe retrains instead of reusing a stale file.
 pub const TRAINING_REVISION: u32 = 3;
 
-/// The confidence network's default input (see `docs/accuracy.md` for how
-/// it was chosen).
-pub const DEFAULT_CONFIDENCE_KIND: Kind = Kind::Response;
+/// Seeds of the validation scenes the network's input is chosen on start
+/// here: disjoint from the training scenes' and from every protocol's test
+/// scenes (small seeds).
+pub const VALIDATION_SEED_BASE: u64 = 2_000_000;
+
+/// The input a choice falls back on when the validation scenes cannot
+/// decide (too few failures to rank by).
+pub const FALLBACK_CONFIDENCE_KIND: Kind = Kind::Response;
+
+/// Validation failures needed to decide between the inputs: with fewer,
+/// an ROC AUC is a coin.
+pub const MIN_VALIDATION_FAILURES: usize = 10;
+
+/// Bootstrap resamples of the validation estimates for the AUC's interval.
+const BOOTSTRAP: usize = 1000;
+
+/// What the confidence network reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfidenceInput {
+    /// Train both inputs on the training scenes and keep the one with the
+    /// higher ROC AUC on held-out validation scenes.
+    Auto,
+    /// This input.
+    Only(Kind),
+}
 
 /// Confidence-training scenes per background used by default.
 pub const DEFAULT_CONFIDENCE_SCENES: usize = 80;
@@ -89,7 +112,12 @@ pub fn train_rendered(
     training: &RenderedTraining,
 ) -> Result<ViewDatabase, EvalError> {
     let views = training.views.views(training.distance, training.seed);
-    let renderer = protocol::renderer(object.clone(), training.background, training.seed);
+    let renderer = protocol::renderer(
+        object.clone(),
+        training.background,
+        TextureSet::Training,
+        training.seed,
+    );
     let renders = protocol::render_views(&renderer, &views, training.seed, "train views");
     let labelled: Vec<LabelledView> = renders
         .iter()
@@ -142,7 +170,7 @@ pub fn confidence_samples(
     for (k, name) in CONFIDENCE_BACKGROUNDS.iter().enumerate() {
         let seed = seed_base + k as u64;
         let background: Background = name.parse()?;
-        let renderer = protocol::renderer(object.clone(), background, seed);
+        let renderer = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
         let views = confidence_views(per_background, distance, seed)?;
         let renders = protocol::render_views(&renderer, &views, seed, name);
         let (w, h) = renders.first().map_or((640, 480), |r| r.image.dimensions());
@@ -225,30 +253,210 @@ pub fn train_confidence(
     Ok(())
 }
 
+/// The ROC AUC of one network input on the validation scenes.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct InputScore {
+    /// "features" or "response".
+    pub input: &'static str,
+    /// Area under the ROC curve of its confidence against reliability.
+    pub roc_auc: f64,
+    /// The 2.5 % and 97.5 % quantiles of the AUC over bootstrap resamples
+    /// of the validation estimates.
+    pub ci95: [f64; 2],
+}
+
+/// How the network's input was chosen.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ConfidenceChoice {
+    /// The input kept.
+    pub chosen: &'static str,
+    /// Whether the validation scenes decided it (else: the fallback).
+    pub decided: bool,
+    /// Estimates of the training scenes.
+    pub training_estimates: usize,
+    /// Of those, failures.
+    pub training_failures: usize,
+    /// Estimates of the validation scenes.
+    pub validation_estimates: usize,
+    /// Of those, failures.
+    pub validation_failures: usize,
+    /// Both inputs on the validation scenes.
+    pub scores: Vec<InputScore>,
+}
+
+impl std::fmt::Display for ConfidenceChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "confidence input: {} ({}; {} validation estimates, {} failures:",
+            self.chosen,
+            if self.decided {
+                "higher ROC AUC on the validation scenes"
+            } else {
+                "too few validation failures to decide: the fallback"
+            },
+            self.validation_estimates,
+            self.validation_failures
+        )?;
+        for s in &self.scores {
+            write!(
+                f,
+                " {} AUC {:.3} [{:.3}, {:.3}]",
+                s.input, s.roc_auc, s.ci95[0], s.ci95[1]
+            )?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// The name of an input kind.
+pub fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Features => "features",
+        Kind::Response => "response",
+    }
+}
+
+/// Both confidence networks of `db`, trained on `per_background` scenes per
+/// background (seeds from [`CONFIDENCE_SEED_BASE`]), scored on as many
+/// validation scenes (seeds from [`VALIDATION_SEED_BASE`]: never a training
+/// or a test scene), and the choice between them. Returns the choice, the
+/// chosen network and the other.
+pub fn choose_confidence_input(
+    db: &ViewDatabase,
+    object: &Arc<Object>,
+    per_background: usize,
+    distance: f64,
+    seed: u64,
+) -> Result<
+    (
+        ConfidenceChoice,
+        acch_confidence::Model,
+        acch_confidence::Model,
+    ),
+    EvalError,
+> {
+    let train = confidence_samples(db, object, per_background, CONFIDENCE_SEED_BASE, distance)?;
+    let validation =
+        confidence_samples(db, object, per_background, VALIDATION_SEED_BASE, distance)?;
+    let labels: Vec<bool> = validation.iter().map(|s| s.reliable).collect();
+    let mut models = Vec::new();
+    let mut scores = Vec::new();
+    for kind in [Kind::Features, Kind::Response] {
+        let mut trained = db.clone();
+        train_confidence(&mut trained, &train, kind, seed)?;
+        let model = acch_confidence::Model::load(&trained)?;
+        let predicted = validation
+            .iter()
+            .map(|s| {
+                model.predict(match kind {
+                    Kind::Features => &s.features,
+                    Kind::Response => &s.response,
+                })
+            })
+            .collect::<Result<Vec<f32>, _>>()?;
+        scores.push(InputScore {
+            input: kind_name(kind),
+            roc_auc: acch_confidence::roc_auc(&predicted, &labels),
+            ci95: bootstrap_auc(&predicted, &labels, seed),
+        });
+        models.push((kind, model));
+    }
+    let failures = |v: &[ConfidenceSample]| v.iter().filter(|s| !s.reliable).count();
+    let validation_failures = failures(&validation);
+    let decided = validation_failures >= MIN_VALIDATION_FAILURES
+        && validation_failures < validation.len()
+        && scores.iter().all(|s| s.roc_auc.is_finite());
+    let chosen = if decided {
+        // Ties go to the fallback.
+        let (f, r) = (scores[0].roc_auc, scores[1].roc_auc);
+        match FALLBACK_CONFIDENCE_KIND {
+            Kind::Response if f > r => Kind::Features,
+            Kind::Features if r > f => Kind::Response,
+            k => k,
+        }
+    } else {
+        FALLBACK_CONFIDENCE_KIND
+    };
+    let choice = ConfidenceChoice {
+        chosen: kind_name(chosen),
+        decided,
+        training_estimates: train.len(),
+        training_failures: failures(&train),
+        validation_estimates: validation.len(),
+        validation_failures,
+        scores,
+    };
+    let (chosen_model, other) = match (models.remove(0), models.remove(0)) {
+        ((k, a), (_, b)) if k == chosen => (a, b),
+        ((_, a), (_, b)) => (b, a),
+    };
+    Ok((choice, chosen_model, other))
+}
+
+/// The 95 % interval of the ROC AUC over bootstrap resamples; NaN where a
+/// resample holds one class only.
+fn bootstrap_auc(scores: &[f32], labels: &[bool], seed: u64) -> [f64; 2] {
+    use rand::{Rng, SeedableRng};
+    let n = scores.len();
+    if n == 0 {
+        return [f64::NAN; 2];
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x626f_6f74);
+    let (mut s, mut l) = (vec![0f32; n], vec![false; n]);
+    let mut aucs: Vec<f64> = (0..BOOTSTRAP)
+        .filter_map(|_| {
+            for k in 0..n {
+                let i = rng.random_range(0..n);
+                (s[k], l[k]) = (scores[i], labels[i]);
+            }
+            Some(acch_confidence::roc_auc(&s, &l)).filter(|a| a.is_finite())
+        })
+        .collect();
+    if aucs.is_empty() {
+        return [f64::NAN; 2];
+    }
+    aucs.sort_by(f64::total_cmp);
+    let at = |q: f64| aucs[((aucs.len() - 1) as f64 * q).round() as usize];
+    [at(0.025), at(0.975)]
+}
+
 /// The whole database of a rendered object: views, recognition model and,
-/// with `confidence = Some((scenes per background, kind))`, the confidence
-/// network.
+/// with `confidence = Some((scenes per background, input))`, the
+/// confidence network. Returns the choice of input when it was `Auto`.
 pub fn train_object(
     object: &Arc<Object>,
     config: &TrainConfig,
     training: &RenderedTraining,
-    confidence: Option<(usize, Kind)>,
-) -> Result<ViewDatabase, EvalError> {
+    confidence: Option<(usize, ConfidenceInput)>,
+) -> Result<(ViewDatabase, Option<ConfidenceChoice>), EvalError> {
     let mut db = train_rendered(object, config, training)?;
-    if let Some((scenes, kind)) = confidence.filter(|(n, _)| *n > 0) {
-        let samples =
-            confidence_samples(&db, object, scenes, CONFIDENCE_SEED_BASE, training.distance)?;
-        let reliable = samples.iter().filter(|s| s.reliable).count();
-        tracing::info!(
-            "confidence: {} estimates from {} scenes, {} reliable, {} not",
-            samples.len(),
-            scenes * CONFIDENCE_BACKGROUNDS.len(),
-            reliable,
-            samples.len() - reliable
-        );
-        train_confidence(&mut db, &samples, kind, training.seed)?;
+    let Some((scenes, input)) = confidence.filter(|(n, _)| *n > 0) else {
+        return Ok((db, None));
+    };
+    match input {
+        ConfidenceInput::Auto => {
+            let (choice, model, _) =
+                choose_confidence_input(&db, object, scenes, training.distance, training.seed)?;
+            tracing::info!("{choice}");
+            model.store(&mut db);
+            Ok((db, Some(choice)))
+        }
+        ConfidenceInput::Only(kind) => {
+            let samples =
+                confidence_samples(&db, object, scenes, CONFIDENCE_SEED_BASE, training.distance)?;
+            let reliable = samples.iter().filter(|s| s.reliable).count();
+            tracing::info!(
+                "confidence: {} estimates from {} scenes, {} reliable, {} not",
+                samples.len(),
+                scenes * CONFIDENCE_BACKGROUNDS.len(),
+                reliable,
+                samples.len() - reliable
+            );
+            train_confidence(&mut db, &samples, kind, training.seed)?;
+            Ok((db, None))
+        }
     }
-    Ok(db)
 }
 
 /// Trains from `DIR/labels.csv` and the images (and masks) it names. Views
@@ -361,17 +569,62 @@ pub fn cached_database(
         object.name(),
         path.display()
     );
-    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, DEFAULT_CONFIDENCE_KIND));
-    let db = train_object(
+    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
+    let (db, choice) = train_object(
         object,
         &TrainConfig::default(),
         &RenderedTraining::default(),
         confidence,
     )?;
+    if let Some(c) = choice {
+        eprintln!("acch: {c}");
+    }
     std::fs::create_dir_all(&dir).map_err(|source| EvalError::Io {
         path: dir.clone(),
         source,
     })?;
     db.save(&path)?;
     Ok((db, path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_training_and_test_seeds_never_meet() {
+        let backgrounds = CONFIDENCE_BACKGROUNDS.len() as u64;
+        let training = CONFIDENCE_SEED_BASE..CONFIDENCE_SEED_BASE + backgrounds;
+        let validation = VALIDATION_SEED_BASE..VALIDATION_SEED_BASE + backgrounds;
+        assert!(training.end <= validation.start);
+        // The protocols' test scenes use small seeds (`--seed`, default 1)
+        // and their frame seeds.
+        assert!(training.start > 1000);
+    }
+
+    #[test]
+    fn the_bootstrap_interval_brackets_the_auc_and_narrows_with_data() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let sample = |n: usize, rng: &mut rand_chacha::ChaCha8Rng| {
+            let labels: Vec<bool> = (0..n).map(|_| rng.random_bool(0.7)).collect();
+            let scores: Vec<f32> = labels
+                .iter()
+                .map(|&l| if l { 0.6 } else { 0.4 } + rng.random_range(-0.3..0.3))
+                .collect();
+            (scores, labels)
+        };
+        let (s, l) = sample(60, &mut rng);
+        let auc = acch_confidence::roc_auc(&s, &l);
+        let [lo, hi] = bootstrap_auc(&s, &l, 0);
+        assert!(lo <= auc && auc <= hi, "{lo} {auc} {hi}");
+        let (s2, l2) = sample(2000, &mut rng);
+        let [lo2, hi2] = bootstrap_auc(&s2, &l2, 0);
+        assert!(
+            hi2 - lo2 < (hi - lo) / 2.0,
+            "{lo2}..{hi2} against {lo}..{hi}"
+        );
+        // One class only: no interval.
+        assert!(bootstrap_auc(&[0.1, 0.2], &[true, true], 0)[0].is_nan());
+    }
 }

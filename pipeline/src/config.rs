@@ -417,6 +417,7 @@ impl PipelineConfig {
         Ok(SourceSpec::Synthetic(SyntheticCamera {
             object: std::sync::Arc::new(object),
             background: self.background.parse().map_err(ConfigError::Object)?,
+            textures: acch_capture::TextureSet::HeldOut,
             seed: self.seed,
             width: self.width,
             height: self.height,

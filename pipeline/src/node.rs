@@ -133,6 +133,28 @@ impl NodeCounters {
     }
 }
 
+/// What the capture process counted; written beside the stages' counters.
+#[derive(Debug, Serialize)]
+pub struct CaptureCounters {
+    /// Always "capture".
+    pub stage: &'static str,
+    /// Its process.
+    pub pid: u32,
+    /// Frames published.
+    pub sent: u64,
+    /// Source frames skipped for having another size than the stream.
+    pub skipped_size: u64,
+}
+
+/// Writes counters `value` of process `name` where the launcher reads them.
+fn write_counters(cfg: &PipelineConfig, name: &str, value: &impl Serialize) {
+    let path = cfg.counters_path(name, std::process::id());
+    let json = serde_json::to_vec(value).expect("counters serialise");
+    if let Err(e) = std::fs::write(&path, json) {
+        tracing::warn!("writing {}: {e}", path.display());
+    }
+}
+
 /// Tells the launcher process `id` is connected (it starts the capture
 /// only when every stage and observer is).
 pub fn announce_ready(ipc: &Ipc, id: usize) -> Result<(), NodeError> {
@@ -234,11 +256,7 @@ pub fn run_stage<S: Stage>(
         }
     }
     tracing::debug!("{}: {counters:?}", id.name());
-    let path = cfg.counters_path(id.name(), counters.pid);
-    let json = serde_json::to_vec(&counters).expect("counters serialise");
-    if let Err(e) = std::fs::write(&path, json) {
-        tracing::warn!("writing {}: {e}", path.display());
-    }
+    write_counters(cfg, id.name(), &counters);
     Ok(counters)
 }
 
@@ -383,8 +401,19 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let ended = producer.join().map_err(|_| NodeError::SourcePanicked)?;
     // A source that fails (an unreadable image, a corrupt recording) ends
     // the stream; say why.
-    ended?;
-    tracing::info!("capture: {} frames sent", i - cfg.first_frame);
+    let skipped_size = ended?;
+    let sent = i - cfg.first_frame;
+    tracing::info!("capture: {sent} frames sent");
+    write_counters(
+        cfg,
+        "capture",
+        &CaptureCounters {
+            stage: "capture",
+            pid: std::process::id(),
+            sent,
+            skipped_size,
+        },
+    );
     while ipc.keep_running() {
         std::thread::sleep(WAIT);
     }
@@ -392,8 +421,9 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
 }
 
 /// The source thread: makes frames `first ..` in order and hands them over
-/// (blocking while [`READ_AHEAD`] wait). Returns when the run's frames are
-/// made, the source ends, or the publisher hangs up.
+/// (blocking while [`READ_AHEAD`] wait). Returns, with the frames it
+/// skipped for their size, when the run's frames are made, the source ends,
+/// or the publisher hangs up.
 fn produce(
     mut source: Source,
     first: u64,
@@ -401,7 +431,7 @@ fn produce(
     realtime: bool,
     out: &std::sync::mpsc::SyncSender<Produced>,
     recycle: &std::sync::mpsc::Receiver<Pixels>,
-) -> Result<(), SourceError> {
+) -> Result<u64, SourceError> {
     if realtime {
         // Rendering is the camera's work, not the real-time path.
         if let Err(e) = acch_ipc::sched::set_normal() {
@@ -422,7 +452,7 @@ fn produce(
     if source.skipped > 0 {
         tracing::warn!("capture: {} frames skipped for their size", source.skipped);
     }
-    Ok(())
+    Ok(source.skipped)
 }
 
 fn sleep_until(due: Instant) {

@@ -389,11 +389,18 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
         cpus: crate::summary::status_field(std::process::id(), "Cpus_allowed_list:")
             .unwrap_or_default(),
     }];
-    s.stage_counters = chain
-        .counters()
-        .iter()
-        .map(|c| serde_json::to_value(c).expect("counters serialise"))
-        .collect();
+    s.stage_counters = std::iter::once(serde_json::json!({
+        "stage": "capture",
+        "sent": got.len(),
+        "skipped_size": source.skipped,
+    }))
+    .chain(
+        chain
+            .counters()
+            .iter()
+            .map(|c| serde_json::to_value(c).expect("counters serialise")),
+    )
+    .collect();
     if opts.samples {
         s.samples = Some(Samples::of(&got, false));
     }

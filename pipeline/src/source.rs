@@ -63,6 +63,9 @@ pub struct SyntheticCamera {
     pub object: Arc<Object>,
     /// The table and its clutter.
     pub background: Background,
+    /// Which instance of the table's texture: the held-out set by default,
+    /// so the scene is not one the confidence network was trained on.
+    pub textures: acch_capture::TextureSet,
     /// Seed of the trajectory and the scene.
     pub seed: u64,
     /// Frame width, pixels.
@@ -245,6 +248,7 @@ impl Source {
                         background: c.background,
                         intrinsics: c.intrinsics(),
                         effects: Default::default(),
+                        textures: c.textures,
                     },
                     c.seed,
                 );

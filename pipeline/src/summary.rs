@@ -67,7 +67,7 @@ pub struct Outcomes {
     /// Rated below the threshold.
     pub rejected: u64,
     /// Estimated but not rated (an unrated run).
-    pub unrated: u64,
+    pub unrated_estimates: u64,
     /// Seeds made (every accepted estimate has one).
     pub seeds: u64,
     /// Frames a stage could not process (a fault, counted by the stage).
@@ -109,7 +109,7 @@ impl Outcomes {
             o.estimated += 1;
             match m.rating() {
                 Rating::Rated(v) if !v.accepted => o.rejected += 1,
-                Rating::Unrated => o.unrated += 1,
+                Rating::Unrated => o.unrated_estimates += 1,
                 _ => {}
             }
             o.seeds += m.seed().is_some() as u64;

@@ -70,6 +70,10 @@ pub struct EvalArgs {
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+    /// table2: the table textures of the test scenes: held-out (none of the
+    /// confidence network's training scenes shows them) or training.
+    #[arg(long, value_name = "SET", default_value = "held-out")]
+    textures: acch_capture::TextureSet,
     /// table2: write the confidence reliability diagram (PNG).
     #[arg(long, value_name = "FILE.png")]
     reliability: Option<PathBuf>,
@@ -101,7 +105,12 @@ pub fn run(args: EvalArgs) -> Result<()> {
             }
         }
         Protocol::Table2 => {
-            let report = table2::table2(object, args.n.unwrap_or(50), args.seed, &config)?;
+            let options = table2::Table2Options {
+                n: args.n.unwrap_or(50),
+                seed: args.seed,
+                textures: args.textures,
+            };
+            let report = table2::table2(object, &options, &config)?;
             report.print();
             if let Some(path) = &args.json {
                 report.write_json(path)?;

@@ -10,7 +10,7 @@ use std::time::Instant;
 use acch_capture::labels::{LabelRow, write_labels};
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Object, Rendered, Renderer,
-    SceneConfig, UpAxis, ViewSpec, check_distance, derive_seed,
+    SceneConfig, TextureSet, UpAxis, ViewSpec, check_distance, derive_seed,
 };
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
@@ -57,6 +57,12 @@ pub struct RenderArgs {
     /// own colours).
     #[arg(long, value_name = "NAME", default_value = "plain")]
     background: Background,
+
+    /// Which instance of the table texture backgrounds A, B, C and clutter
+    /// show: training (what the default confidence network is trained on)
+    /// or held-out (what the evaluations and the simulated camera show).
+    #[arg(long, value_name = "SET", default_value = "training")]
+    textures: TextureSet,
 
     /// Seed for random views, the clutter layout and the per-view noise.
     /// The same command line always writes the same bytes.
@@ -163,6 +169,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             blur_sigma: args.blur,
             brightness: args.brightness,
         },
+        textures: args.textures,
     };
     let start = Instant::now();
     let renderer = Renderer::new(config, args.seed);

@@ -31,8 +31,8 @@ pub struct RunArgs {
     /// Elevation band the simulated camera sweeps, MIN,MAX degrees (default
     /// 45.5,89.5: inside the database; a lower minimum takes the camera
     /// below it, as a real arm's goes).
-    #[arg(long, value_name = "MIN,MAX", value_delimiter = ',', num_args = 2)]
-    pub(crate) elevation: Option<Vec<f64>>,
+    #[arg(long, value_name = "MIN,MAX", value_parser = parse_band)]
+    pub(crate) elevation: Option<[f64; 2]>,
     /// Frames to process (default 300, or the configuration's).
     #[arg(long)]
     pub(crate) frames: Option<u64>,
@@ -131,8 +131,8 @@ impl RunArgs {
         if let Some(b) = self.background {
             cfg.background = b.to_string();
         }
-        if let Some(e) = &self.elevation {
-            cfg.elevation_deg = [e[0], e[1]];
+        if let Some(e) = self.elevation {
+            cfg.elevation_deg = e;
         }
         if let Some((w, h)) = self.resolution {
             (cfg.width, cfg.height) = (w, h);
@@ -170,6 +170,19 @@ impl RunArgs {
         }
         Ok(cfg)
     }
+}
+
+/// Parses `MIN,MAX` degrees (checked with the rest of the configuration).
+fn parse_band(s: &str) -> Result<[f64; 2], String> {
+    let (lo, hi) = s
+        .split_once(',')
+        .ok_or_else(|| format!("'{s}' is not MIN,MAX"))?;
+    let num = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{s}': '{v}' is not a number of degrees"))
+    };
+    Ok([num(lo)?, num(hi)?])
 }
 
 /// Runs `acch run`.

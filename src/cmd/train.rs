@@ -37,7 +37,7 @@ pub struct TrainArgs {
     confidence_scenes: usize,
     /// Confidence network input: the four response features, or the whole
     /// response.
-    #[arg(long, value_enum, default_value = "response")]
+    #[arg(long, value_enum, default_value = "auto")]
     confidence_input: ConfidenceInput,
     /// Confidence below which an estimate is rejected; stored in the
     /// database (`acch estimate --threshold` overrides it per call).
@@ -51,17 +51,25 @@ pub struct TrainArgs {
 /// What the confidence network reads.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum ConfidenceInput {
+    /// Both inputs trained; the one with the higher ROC AUC on validation
+    /// scenes (never a training or a test scene) kept.
+    Auto,
     /// R_phi, D_phi, R_theta, D_theta (paper, section 4).
     Features,
     /// The whole match-value response, normalised by its maximum.
     Response,
 }
 
-impl From<ConfidenceInput> for acch_confidence::Kind {
+impl From<ConfidenceInput> for train::ConfidenceInput {
     fn from(c: ConfidenceInput) -> Self {
         match c {
-            ConfidenceInput::Features => acch_confidence::Kind::Features,
-            ConfidenceInput::Response => acch_confidence::Kind::Response,
+            ConfidenceInput::Auto => train::ConfidenceInput::Auto,
+            ConfidenceInput::Features => {
+                train::ConfidenceInput::Only(acch_confidence::Kind::Features)
+            }
+            ConfidenceInput::Response => {
+                train::ConfidenceInput::Only(acch_confidence::Kind::Response)
+            }
         }
     }
 }
@@ -78,7 +86,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
     }
     let start = std::time::Instant::now();
     let db = match &args.images {
-        Some(dir) => train::train_from_folder(dir, &config)?,
+        Some(dir) => {
+            let db = train::train_from_folder(dir, &config)?;
+            println!(
+                "no confidence network (labelled images give no failures to learn from): run it with `acch run --unrated`"
+            );
+            db
+        }
         None => {
             let object = args.object.load()?;
             let training = RenderedTraining {
@@ -88,7 +102,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 seed: args.seed,
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
-            let mut db = train::train_object(&object, &config, &training, confidence)?;
+            let (mut db, choice) = train::train_object(&object, &config, &training, confidence)?;
+            if let Some(c) = choice {
+                println!("{c}");
+            }
             if args.confidence_scenes > 0 {
                 let mut network = acch_confidence::Model::load(&db)?;
                 network.set_threshold(args.confidence_threshold)?;

@@ -119,12 +119,61 @@ pub(crate) enum TableKind {
     Laminate,
 }
 
-/// The tiling table texture of a kind, generated once per process from a
-/// fixed seed so a table always looks the same.
-pub(crate) fn table_texture(kind: TableKind) -> Arc<Texture> {
-    static CACHE: [OnceLock<Arc<Texture>>; 4] = [const { OnceLock::new() }; 4];
-    CACHE[kind as usize]
-        .get_or_init(|| Arc::new(make_table(kind)))
+/// Which instance of each table texture a scene shows. Every background
+/// kind (wood, fabric, felt, laminate) comes in two textures of the same
+/// look from different seeds: what a model is trained on must not be the
+/// very table it is evaluated on.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum TextureSet {
+    /// The textures training scenes show (the confidence network's).
+    #[default]
+    Training,
+    /// Textures no training scene shows: for evaluation, and for the
+    /// simulated camera of `acch run`.
+    HeldOut,
+}
+
+impl TextureSet {
+    /// Added to every seed of the texture generators.
+    fn salt(self) -> u32 {
+        match self {
+            TextureSet::Training => 0,
+            TextureSet::HeldOut => 7919,
+        }
+    }
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            TextureSet::Training => "training",
+            TextureSet::HeldOut => "held-out",
+        }
+    }
+}
+
+impl fmt::Display for TextureSet {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for TextureSet {
+    type Err = CaptureError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "training" => Ok(TextureSet::Training),
+            "held-out" => Ok(TextureSet::HeldOut),
+            _ => Err(CaptureError::UnknownTextureSet { name: s.to_owned() }),
+        }
+    }
+}
+
+/// The tiling table texture of a kind in a set, generated once per process
+/// from fixed seeds so a table always looks the same.
+pub(crate) fn table_texture(kind: TableKind, set: TextureSet) -> Arc<Texture> {
+    static CACHE: [OnceLock<Arc<Texture>>; 8] = [const { OnceLock::new() }; 8];
+    CACHE[2 * kind as usize + set as usize]
+        .get_or_init(|| Arc::new(make_table(kind, set.salt())))
         .clone()
 }
 
@@ -140,18 +189,19 @@ fn to_u8(c: [f32; 3]) -> [u8; 3] {
     c.map(|v| v.round().clamp(0.0, 255.0) as u8)
 }
 
-fn make_table(kind: TableKind) -> Texture {
+fn make_table(kind: TableKind, salt: u32) -> Texture {
     let n = TABLE_TEXELS;
     let mut data = vec![[0u8; 3]; (n * n) as usize];
     data.par_chunks_mut(n as usize)
         .enumerate()
         .for_each(|(y, row)| {
             for (x, t) in row.iter_mut().enumerate() {
+                let (x, y, n) = (x as i32, y as i32, n as i32);
                 *t = match kind {
-                    TableKind::Wood => wood_texel(x as i32, y as i32, n as i32),
-                    TableKind::Fabric => fabric_texel(x as i32, y as i32, n as i32),
-                    TableKind::Felt => felt_texel(x as i32, y as i32, n as i32),
-                    TableKind::Laminate => laminate_texel(x as i32, y as i32, n as i32),
+                    TableKind::Wood => wood_texel(x, y, n, salt),
+                    TableKind::Fabric => fabric_texel(x, y, n, salt),
+                    TableKind::Felt => felt_texel(x, y, n, salt),
+                    TableKind::Laminate => laminate_texel(x, y, n, salt),
                 };
             }
         });
@@ -159,20 +209,20 @@ fn make_table(kind: TableKind) -> Texture {
 }
 
 /// Yellowish planks along x with growth rings, fine streaks and dark seams.
-fn wood_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
+fn wood_texel(x: i32, y: i32, n: i32, salt: u32) -> [u8; 3] {
     const PLANK: i32 = 128;
     let plank = y / PLANK;
     let ly = (y % PLANK) as f32 / PLANK as f32;
     let xs = x as f32 / n as f32;
-    let seed = 100 + plank as u32;
-    let tint = 0.9 + 0.18 * hash2(plank, 0, 11);
-    let joint = (hash2(plank, 1, 12) * n as f32) as i32;
+    let seed = 100 + salt + plank as u32;
+    let tint = 0.9 + 0.18 * hash2(plank, 0, 11 + salt);
+    let joint = (hash2(plank, 1, 12 + salt) * n as f32) as i32;
     let dx = (x - joint).rem_euclid(n);
     if y % PLANK < 2 || dx < 2 || dx > n - 2 {
         return [92, 62, 34];
     }
     let warp = fbm(xs * 3.0, ly * 2.0, 3, 1 << 20, 3, seed);
-    let s = ly * 5.0 + 2.5 * warp + 4.0 * hash2(plank, 2, 13);
+    let s = ly * 5.0 + 2.5 * warp + 4.0 * hash2(plank, 2, 13 + salt);
     let ring = s - s.floor();
     let late = ((ring - 0.55) / 0.2).clamp(0.0, 1.0) * ((1.0 - ring) / 0.15).clamp(0.0, 1.0);
     let streak = value_noise(
@@ -189,22 +239,22 @@ fn wood_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
 }
 
 /// Blue woven fabric: a twill over a mottled dye.
-fn fabric_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
+fn fabric_texel(x: i32, y: i32, n: i32, salt: u32) -> [u8; 3] {
     let (xs, ys) = (x as f32 / n as f32, y as f32 / n as f32);
-    let mott = fbm(xs * 8.0, ys * 8.0, 8, 8, 4, 21);
+    let mott = fbm(xs * 8.0, ys * 8.0, 8, 8, 4, 21 + salt);
     let twill = (std::f32::consts::TAU * (x + y) as f32 / 8.0).sin();
     let cross = (std::f32::consts::TAU * (x - y) as f32 / 16.0).sin();
-    let fiber = hash2(x, y, 23) - 0.5;
+    let fiber = hash2(x, y, 23 + salt) - 0.5;
     let k = (0.7 + 0.5 * mott) * (0.9 + 0.08 * twill + 0.04 * cross) + 0.12 * fiber;
     to_u8([42.0 * k, 78.0 * k, 168.0 * k + 10.0])
 }
 
 /// Green mottled felt with darker blotches and grain.
-fn felt_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
+fn felt_texel(x: i32, y: i32, n: i32, salt: u32) -> [u8; 3] {
     let (xs, ys) = (x as f32 / n as f32, y as f32 / n as f32);
-    let mott = fbm(xs * 6.0, ys * 6.0, 6, 6, 5, 31);
-    let blot = fbm(xs * 3.0, ys * 3.0, 3, 3, 3, 37);
-    let grain = hash2(x, y, 33) - 0.5;
+    let mott = fbm(xs * 6.0, ys * 6.0, 6, 6, 5, 31 + salt);
+    let blot = fbm(xs * 3.0, ys * 3.0, 3, 3, 3, 37 + salt);
+    let grain = hash2(x, y, 33 + salt) - 0.5;
     let mut c = lerp3([38.0, 98.0, 44.0], [112.0, 172.0, 82.0], mott);
     if blot > 0.58 {
         let d = ((blot - 0.58) / 0.1).min(1.0) * 0.25;
@@ -214,12 +264,12 @@ fn felt_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
 }
 
 /// Light grey laminate with faint clouding and speckles.
-fn laminate_texel(x: i32, y: i32, n: i32) -> [u8; 3] {
+fn laminate_texel(x: i32, y: i32, n: i32, salt: u32) -> [u8; 3] {
     let (xs, ys) = (x as f32 / n as f32, y as f32 / n as f32);
-    let cloud = fbm(xs * 4.0, ys * 4.0, 4, 4, 4, 41);
-    let k = 0.92 + 0.14 * cloud + 0.03 * (hash2(x, y, 43) - 0.5);
+    let cloud = fbm(xs * 4.0, ys * 4.0, 4, 4, 4, 41 + salt);
+    let k = 0.92 + 0.14 * cloud + 0.03 * (hash2(x, y, 43 + salt) - 0.5);
     let mut c = [182.0 * k, 176.0 * k, 164.0 * k];
-    let s = hash2(x, y, 47);
+    let s = hash2(x, y, 47 + salt);
     if s > 0.985 {
         c = c.map(|v| v * 0.62);
     } else if s < 0.01 {

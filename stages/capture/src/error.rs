@@ -116,6 +116,12 @@ pub enum CaptureError {
         /// The valid names, comma separated.
         valid: String,
     },
+    /// An unknown texture set name.
+    #[error("unknown texture set '{name}'; valid: training, held-out")]
+    UnknownTextureSet {
+        /// The name asked for.
+        name: String,
+    },
     /// An unknown up-axis name.
     #[error("unknown up axis '{name}'; valid: +x, -x, +y, -y, +z, -z")]
     UnknownUpAxis {

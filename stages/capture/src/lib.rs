@@ -45,7 +45,7 @@ mod texture;
 mod trajectory;
 mod views;
 
-pub use background::Background;
+pub use background::{Background, TextureSet};
 pub use camera::{DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance};
 pub use effects::Effects;
 pub use error::CaptureError;

@@ -7,7 +7,9 @@ use glam::DAffine3;
 use image::{GrayImage, RgbImage};
 use serde::{Deserialize, Serialize};
 
-use crate::background::{Background, Placed, TABLE_TILE, TableKind, clutter_layout, table_texture};
+use crate::background::{
+    Background, Placed, TABLE_TILE, TableKind, TextureSet, clutter_layout, table_texture,
+};
 use crate::effects::{self, Effects};
 use crate::object::Object;
 use crate::raster::{Frame, draw_object, draw_table, light_world};
@@ -26,6 +28,8 @@ pub struct SceneConfig {
     pub intrinsics: Intrinsics,
     /// Blur, brightness and noise.
     pub effects: Effects,
+    /// Which instance of the table texture the background shows.
+    pub textures: TextureSet,
 }
 
 impl SceneConfig {
@@ -36,6 +40,15 @@ impl SceneConfig {
             background,
             intrinsics: Intrinsics::default(),
             effects: Effects::default(),
+            textures: TextureSet::default(),
+        }
+    }
+
+    /// The same scene with the textures of `set`.
+    pub fn with_textures(self, set: TextureSet) -> Self {
+        SceneConfig {
+            textures: set,
+            ..self
         }
     }
 }
@@ -122,7 +135,7 @@ impl Renderer {
             Background::C => Some(TableKind::Felt),
             Background::Clutter | Background::ClutterSimilar => Some(TableKind::Laminate),
         }
-        .map(table_texture);
+        .map(|kind| table_texture(kind, config.textures));
         let distractors = match config.background {
             Background::Clutter => clutter_layout(&config.object, false, scene_seed),
             Background::ClutterSimilar => clutter_layout(&config.object, true, scene_seed),

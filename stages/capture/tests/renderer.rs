@@ -593,3 +593,61 @@ fn renderer_and_outputs_can_cross_threads() {
     assert_send_sync::<Object>();
     assert_send_sync::<acch_capture::Trajectory>();
 }
+
+#[test]
+fn held_out_tables_are_other_textures_of_the_same_look() {
+    use acch_capture::TextureSet;
+    let object = std::sync::Arc::new(acch_capture::Object::builtin("fruitbox").unwrap());
+    let view = acch_capture::ViewPose::new(60.0, 30.0, acch_capture::DEFAULT_DISTANCE).unwrap();
+    for background in [
+        acch_capture::Background::A,
+        acch_capture::Background::B,
+        acch_capture::Background::C,
+        acch_capture::Background::Clutter,
+    ] {
+        let render = |set| {
+            let config =
+                acch_capture::SceneConfig::new(object.clone(), background).with_textures(set);
+            acch_capture::Renderer::new(config, 5).render(&view, 1)
+        };
+        let (train, held) = (render(TextureSet::Training), render(TextureSet::HeldOut));
+        // The table, where no object covers it (distractors, the same on
+        // both, included).
+        let table: Vec<usize> = (0..train.mask.as_raw().len())
+            .filter(|&i| train.mask.as_raw()[i] == 0 && held.mask.as_raw()[i] == 0)
+            .collect();
+        let (a, b) = (train.image.as_raw(), held.image.as_raw());
+        let differ = table
+            .iter()
+            .filter(|&&i| (0..3).any(|c| a[3 * i + c].abs_diff(b[3 * i + c]) > 2))
+            .count();
+        assert!(
+            differ * 2 > table.len(),
+            "{background}: only {differ} of {} table pixels differ",
+            table.len()
+        );
+        let mean = |img: &[u8]| {
+            let mut m = [0f64; 3];
+            for &i in &table {
+                for c in 0..3 {
+                    m[c] += img[3 * i + c] as f64 / table.len() as f64;
+                }
+            }
+            m
+        };
+        let (ma, mb) = (mean(a), mean(b));
+        for c in 0..3 {
+            assert!(
+                (ma[c] - mb[c]).abs() < 0.15 * ma[c].max(20.0),
+                "{background}: the look changed: {ma:?} against {mb:?}"
+            );
+        }
+        // The object is rendered the same on both.
+        assert_eq!(train.mask, held.mask);
+    }
+    assert_eq!(
+        "held-out".parse::<TextureSet>().unwrap(),
+        TextureSet::HeldOut
+    );
+    assert!("lunar".parse::<TextureSet>().is_err());
+}

@@ -1,0 +1,150 @@
+//! Accepted means rated at or above the threshold, and nothing else: a
+//! database without a confidence network is refused unless the run is
+//! explicitly unrated (and then nothing is accepted), and a response the
+//! network cannot rate is a counted fault, never an accepted estimate.
+
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
+};
+use acch_core::ViewDatabase;
+use acch_pipeline::stage::{StageCounters, step};
+use acch_pipeline::stages::{BuildError, Confidence, PoseEstimate, Posed, Rating, Seeding};
+use acch_pipeline::wire::{Fault, Intrinsics, Outcome, PixelRect};
+use acch_pipeline::{Chain, FrameHeader, StageId, StageSettings};
+use std::sync::Arc;
+
+fn database(with_network: bool) -> ViewDatabase {
+    let object = Arc::new(Object::builtin("fruitbox").unwrap());
+    let plain = Renderer::new(SceneConfig::new(object, Background::default()), 0);
+    let grid = ViewSpec::Grid {
+        thetas_deg: vec![50.0, 70.0, 90.0],
+        phi_step_deg: 30.0,
+    };
+    let acch_testkit::Trained { mut db, model } =
+        acch_testkit::train_on_views("fruitbox", &plain, &grid);
+    db.sections
+        .insert(acch_recognition::SECTION.to_owned(), model.to_bytes());
+    if with_network {
+        let views = db.views().len();
+        let samples: Vec<(Vec<f32>, bool)> = (0..16)
+            .map(|i| {
+                (
+                    (0..views).map(|v| ((v + i) % 5) as f32 / 5.0).collect(),
+                    i % 2 == 0,
+                )
+            })
+            .collect();
+        let config = acch_confidence::TrainConfig {
+            epochs: 5,
+            ..acch_confidence::TrainConfig::new(acch_confidence::Kind::Response)
+        };
+        acch_confidence::train(&samples, &config)
+            .unwrap()
+            .store(&mut db);
+    }
+    db
+}
+
+fn settings(unrated: bool) -> StageSettings {
+    StageSettings {
+        width: 640,
+        height: 480,
+        distance: Some(DEFAULT_DISTANCE),
+        unrated,
+    }
+}
+
+/// Pose's header of an estimate on a region.
+fn posed() -> Posed {
+    let mut p = Posed {
+        pose: Outcome::Done(PoseEstimate {
+            theta_deg: 60.0,
+            phi_deg: 30.0,
+            best_value: 0.9,
+            scale: 1.0,
+            best_view: 3,
+        }),
+        ..Default::default()
+    };
+    p.segmented.region = Outcome::Done(PixelRect {
+        x: 300,
+        y: 200,
+        width: 40,
+        height: 40,
+    });
+    let f = &mut p.segmented.recognised.envelope.frame;
+    (f.width, f.height) = (640, 480);
+    f.intrinsics = Intrinsics {
+        fx: 500.0,
+        fy: 500.0,
+        cx: 319.5,
+        cy: 239.5,
+    };
+    p
+}
+
+#[test]
+fn a_database_without_a_network_is_refused_unless_the_run_is_unrated() {
+    let db = database(false);
+    match Confidence::new(&db, &settings(false)) {
+        Err(e @ BuildError::NoConfidence { .. }) => {
+            let msg = e.to_string();
+            assert!(
+                msg.contains("no confidence network") && msg.contains("--unrated"),
+                "{msg}"
+            );
+        }
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("a database without a network was accepted"),
+    }
+    assert!(Chain::build(&db, &settings(false)).is_err());
+    // Unrated: every estimate is marked so, none is accepted or seeded.
+    let mut chain = Chain::build(&db, &settings(true)).unwrap();
+    let object = Arc::new(Object::builtin("fruitbox").unwrap());
+    let scene = Renderer::new(SceneConfig::new(object, Background::A), 1);
+    let r = scene.render(&ViewPose::new(70.0, 30.0, DEFAULT_DISTANCE).unwrap(), 1);
+    let frame = FrameHeader::rgb(0, 640, 480, Intrinsics::from(&r.truth.intrinsics));
+    let out = chain.process(&frame, r.image.as_raw());
+    assert!(out.pose().done().is_some(), "the scene must be estimated");
+    assert_eq!(*out.rating(), Rating::Unrated);
+    assert!(!out.accepted());
+    assert!(out.seed().is_none());
+}
+
+#[test]
+fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
+    let db = database(true);
+    let views = db.views().len();
+    let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
+    let mut seeding = Seeding::new(&db, &settings(false)).unwrap();
+    let mut counters = StageCounters::new(StageId::Confidence);
+    let mut seed_counters = StageCounters::new(StageId::Seeding);
+    let response: Vec<u8> = (0..views)
+        .flat_map(|v| (v as f32 / views as f32).to_ne_bytes())
+        .collect();
+    // The whole response: rated (accepted or not, by the threshold).
+    let rated = step(
+        &mut confidence,
+        &posed(),
+        &response,
+        &mut [],
+        0,
+        &mut counters,
+    );
+    let verdict = rated.rating.verdict().expect("rated");
+    assert_eq!(verdict.accepted, verdict.confidence >= verdict.threshold);
+    assert_eq!(counters.total_faults(), 0);
+    // One value short: a fault, counted, not accepted, not seeded.
+    let short = &response[..4 * (views - 1)];
+    let rated = step(&mut confidence, &posed(), short, &mut [], 0, &mut counters);
+    assert_eq!(rated.rating, Rating::Failed(Fault::Response));
+    assert_eq!(counters.faults_of(Fault::Response), 1);
+    let seeded = step(&mut seeding, &rated, &[], &mut [], 0, &mut seed_counters);
+    assert!(!seeded.accepted());
+    assert!(seeded.seed().is_none());
+    // A response of values the network cannot rate (not finite): the same.
+    let nan: Vec<u8> = (0..views).flat_map(|_| f32::NAN.to_ne_bytes()).collect();
+    let rated = step(&mut confidence, &posed(), &nan, &mut [], 0, &mut counters);
+    assert_eq!(rated.rating, Rating::Failed(Fault::Response));
+    assert_eq!(counters.faults_of(Fault::Response), 2);
+}
