@@ -431,45 +431,36 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 .map(|r| figures(r, frames, args.warmup))
                 .collect();
             let (shm, inproc, copy) = (&f[0], &f[1], &f[2]);
-            let rt = f.get(3);
-            let ratio = |a: &Value, b: &Value, k: &str| {
-                a[k].as_f64().unwrap_or(0.0) / b[k].as_f64().unwrap_or(0.0).max(1e-12)
-            };
             let frame_hop = |v: &Value, k: &str| v["hops"]["recognition"][k].as_f64();
             let label = format!("{}x{} at {}", res.0, res.1, fps_label(fps));
             let mut mode_figures = json!({"shm": shm, "in-process": inproc, "copy": copy});
-            let mut config = json!({
-                "resolution": format!("{}x{}", res.0, res.1),
-                "fps": fps,
-                "frames": args.frames,
-                "repeat": args.repeat,
-                "e2e_p50_ms": shm["e2e_p50_ms"],
-                "e2e_p90_ms": shm["e2e_p90_ms"],
-                "e2e_p99_ms": shm["e2e_p99_ms"],
-                "e2e_max_ms": shm["e2e_max_ms"],
-                "hop_p99_us": shm["hop_p99_us"],
-                "dropped": shm["dropped"],
-                "throughput_fps": shm["throughput_fps"],
-                "overhead_vs_inprocess": ratio(shm, inproc, "e2e_p50_ms") - 1.0,
-                "overhead_vs_inprocess_p99": ratio(shm, inproc, "e2e_p99_ms") - 1.0,
-                "speedup_vs_copy": ratio(copy, shm, "e2e_p50_ms"),
-                "overhead_breakdown_ms": breakdown(&runs[0], &runs[1]),
-                "speedup_vs_copy_p99": ratio(copy, shm, "e2e_p99_ms"),
-                "frame_hop_p50_us": {"shm": frame_hop(shm, "p50_us"), "copy": frame_hop(copy, "p50_us")},
-                "frame_hop_p99_us": {"shm": frame_hop(shm, "p99_us"), "copy": frame_hop(copy, "p99_us")},
-            });
-            if let Some(rt) = rt {
+            let mut config = against(shm, inproc, copy);
+            for (k, v) in [
+                ("resolution", json!(format!("{}x{}", res.0, res.1))),
+                ("fps", json!(fps)),
+                ("frames", json!(args.frames)),
+                ("repeat", json!(args.repeat)),
+                ("e2e_p90_ms", shm["e2e_p90_ms"].clone()),
+                ("e2e_max_ms", shm["e2e_max_ms"].clone()),
+                ("throughput_fps", shm["throughput_fps"].clone()),
+                ("overhead_breakdown_ms", breakdown(&runs[0], &runs[1])),
+                ("speedup_vs_copy_p99", json!(ratio(copy, shm, "e2e_p99_ms"))),
+                (
+                    "frame_hop_p50_us",
+                    json!({"shm": frame_hop(shm, "p50_us"), "copy": frame_hop(copy, "p50_us")}),
+                ),
+                (
+                    "frame_hop_p99_us",
+                    json!({"shm": frame_hop(shm, "p99_us"), "copy": frame_hop(copy, "p99_us")}),
+                ),
+            ] {
+                config[k] = v;
+            }
+            if let Some(rt) = f.get(3) {
                 mode_figures["shm-rt"] = rt.clone();
-                config["realtime"] = json!({
-                    "priority": args.rt_priority,
-                    "e2e_p50_ms": rt["e2e_p50_ms"],
-                    "e2e_p99_ms": rt["e2e_p99_ms"],
-                    "hop_p99_us": rt["hop_p99_us"],
-                    "dropped": rt["dropped"],
-                    "overhead_vs_inprocess": ratio(rt, inproc, "e2e_p50_ms") - 1.0,
-                    "overhead_vs_inprocess_p99": ratio(rt, inproc, "e2e_p99_ms") - 1.0,
-                    "speedup_vs_copy": ratio(copy, rt, "e2e_p50_ms"),
-                });
+                let mut realtime = against(rt, inproc, copy);
+                realtime["priority"] = json!(args.rt_priority);
+                config["realtime"] = realtime;
             }
             config["modes"] = mode_figures;
             configs.push(config);
@@ -528,6 +519,25 @@ pub fn run(args: BenchArgs) -> Result<()> {
         args.png.display()
     );
     Ok(())
+}
+
+/// `a[k] / b[k]`.
+fn ratio(a: &Value, b: &Value, k: &str) -> f64 {
+    a[k].as_f64().unwrap_or(0.0) / b[k].as_f64().unwrap_or(0.0).max(1e-12)
+}
+
+/// A mode's headline figures, against the in-process floor and the copy
+/// baseline.
+fn against(m: &Value, inproc: &Value, copy: &Value) -> Value {
+    json!({
+        "e2e_p50_ms": m["e2e_p50_ms"],
+        "e2e_p99_ms": m["e2e_p99_ms"],
+        "hop_p99_us": m["hop_p99_us"],
+        "dropped": m["dropped"],
+        "overhead_vs_inprocess": ratio(m, inproc, "e2e_p50_ms") - 1.0,
+        "overhead_vs_inprocess_p99": ratio(m, inproc, "e2e_p99_ms") - 1.0,
+        "speedup_vs_copy": ratio(copy, m, "e2e_p50_ms"),
+    })
 }
 
 fn fps_label(fps: f64) -> String {

@@ -29,6 +29,20 @@ pub fn fails(estimate: (f32, f32), truth: (f32, f32)) -> bool {
     !failure_rule().reliable(estimate, truth)
 }
 
+/// Whether errors (|Δθ|, |Δφ|), degrees, fail the paper's rule.
+pub fn errors_fail((dtheta, dphi): (f64, f64)) -> bool {
+    let rule = failure_rule();
+    dtheta > rule.theta_deg as f64 || dphi > rule.phi_deg as f64
+}
+
+/// (|Δθ|, |Δφ|) of `estimate` (θ, φ) against `truth`, degrees.
+pub fn view_errors(estimate: (f64, f64), truth: &ViewPose) -> (f64, f64) {
+    (
+        (estimate.0 - truth.theta_deg).abs(),
+        acch_pose::phi_error(estimate.1 as f32, truth.phi_deg as f32) as f64,
+    )
+}
+
 /// Backgrounds of the textured-scene protocols: (reported name, renderer
 /// background). `clutter` is reported for distractors painted in the
 /// object's own colours.
@@ -104,15 +118,13 @@ pub fn render_views(
 
 /// A rendered view as training input, with its ground-truth mask.
 pub fn labelled(r: &Rendered, train_distance: f64) -> LabelledView<'_> {
-    LabelledView {
-        rgb: r.image.as_raw(),
-        mask: r.mask.as_raw(),
-        width: r.image.width(),
-        height: r.image.height(),
-        theta_deg: r.truth.theta_deg as f32,
-        phi_deg: r.truth.phi_deg as f32,
-        scale: (train_distance / r.truth.distance) as f32,
-    }
+    LabelledView::new(
+        r.image.as_raw(),
+        r.mask.as_raw(),
+        r.image.dimensions(),
+        (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
+        (train_distance / r.truth.distance) as f32,
+    )
 }
 
 /// The frame header of rendered frame `sequence`, with its ground truth

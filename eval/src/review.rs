@@ -3,8 +3,7 @@
 //! [`crate::sequence`] for the protocol).
 
 use crate::EvalError;
-use crate::protocol::{self, scene_seed};
-use crate::sequence::{SequenceOptions, errors, fails};
+use crate::protocol::{self, errors_fail as fails, scene_seed, view_errors as errors};
 use acch_capture::{Background, DEFAULT_DISTANCE, Object, Renderer, TextureSet, ViewPose};
 use acch_core::ViewDatabase;
 use acch_pipeline::Chain;
@@ -196,20 +195,20 @@ fn next_move(
 }
 
 /// Runs episode `i` on background `b` from `start`: the chain rates each
-/// view; a rejection makes the arm move by `policy`, up to `max_moves`.
+/// view; a rejection makes the arm move by `policy`, up to `max_moves`;
+/// `seed` is the protocol's.
 #[allow(clippy::too_many_arguments)]
 pub fn run_episode(
     chain: &mut Chain,
     object: &Arc<Object>,
     background: Background,
-    o: &SequenceOptions,
-    b: usize,
-    i: usize,
+    (seed, max_moves): (u64, usize),
+    (b, i): (usize, usize),
     start: ViewPose,
     policy: Policy,
     ambiguity: &[f32],
 ) -> Episode {
-    let scene = scene_seed(o.seed, b, i, 2);
+    let scene = scene_seed(seed, b, i, 2);
     let renderer: Renderer =
         protocol::renderer(object.clone(), background, TextureSet::HeldOut, scene);
     let mut view = start;
@@ -217,7 +216,7 @@ pub fn run_episode(
     let mut arm = (start.theta_deg, 0.0);
     let mut tried = vec![arm];
     let mut img = acch_capture::Rendered::default();
-    for moves in 0..=o.max_moves {
+    for moves in 0..=max_moves {
         renderer.render_into(&view, scene.wrapping_add(moves as u64), &mut img);
         // One view at a time: no arm pose, nothing fused across views.
         let frame = protocol::frame_of(&img, moves as u64, false);
@@ -231,7 +230,7 @@ pub fn run_episode(
                 Episode::Success(moves)
             };
         }
-        if moves == o.max_moves {
+        if moves == max_moves {
             break;
         }
         let estimated = result.pose().done().is_some();

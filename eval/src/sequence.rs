@@ -48,18 +48,17 @@
 //!   near a view already tried. Without a response (not found) it falls
 //!   back to the sweep.
 
-use crate::protocol::{self, scene_seed};
+use crate::protocol::{self, errors_fail as fails, scene_seed, view_errors as errors};
 use crate::review::{
     Policy, ReviewRow, review_starts, run_episode, summarise_review, view_ambiguity,
 };
 use crate::train::{self, RenderedTraining};
 use crate::{EvalError, write_json};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, Trajectory, ViewPose};
+use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, Trajectory};
 use acch_core::ViewDatabase;
 use acch_pipeline::stages::Fusion;
 use acch_pipeline::stages::seeding::KNOWN_DISTANCE_RELATIVE_SIGMA;
 use acch_pipeline::{Chain, Hop};
-use acch_pose::phi_error;
 use acch_pose::train::TrainConfig;
 use acch_seeding::{FilterConfig, theta_censored};
 use indicatif::ProgressBar;
@@ -246,20 +245,6 @@ struct FrameRecord {
     outcome: Option<Fusion>,
 }
 
-/// Whether (|Δθ|, |Δφ|) fails the paper's rule.
-pub(crate) fn fails((dtheta, dphi): (f64, f64)) -> bool {
-    let rule = protocol::failure_rule();
-    dtheta > rule.theta_deg as f64 || dphi > rule.phi_deg as f64
-}
-
-/// |Δθ|, |Δφ| of `estimate` (θ, φ) against `truth`.
-pub(crate) fn errors(estimate: (f64, f64), truth: &ViewPose) -> (f64, f64) {
-    (
-        (estimate.0 - truth.theta_deg).abs(),
-        phi_error(estimate.1 as f32, truth.phi_deg as f32) as f64,
-    )
-}
-
 /// Runs the sequence protocol for one object.
 pub fn sequence(
     object: Arc<Object>,
@@ -347,7 +332,14 @@ pub fn sequence(
                             .as_mut()
                             .map_err(|e| EvalError::Worker(e.to_string()))?;
                         let e = run_episode(
-                            chain, &object, background, o, b, i, *v, policy, &ambiguity,
+                            chain,
+                            &object,
+                            background,
+                            (o.seed, o.max_moves),
+                            (b, i),
+                            *v,
+                            policy,
+                            &ambiguity,
                         );
                         bar.inc(1);
                         Ok(e)

@@ -495,14 +495,14 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
     bar.finish_and_clear();
     let labelled: Vec<LabelledView> = images
         .iter()
-        .map(|(rgb, mask, row)| LabelledView {
-            rgb: rgb.as_raw(),
-            mask,
-            width: rgb.width(),
-            height: rgb.height(),
-            theta_deg: row.theta_deg as f32,
-            phi_deg: row.phi_deg as f32,
-            scale: (train_distance / row.distance) as f32,
+        .map(|(rgb, mask, row)| {
+            LabelledView::new(
+                rgb.as_raw(),
+                mask,
+                rgb.dimensions(),
+                (row.theta_deg as f32, row.phi_deg as f32),
+                (train_distance / row.distance) as f32,
+            )
         })
         .collect();
     let name = dir

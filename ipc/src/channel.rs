@@ -170,18 +170,10 @@ impl Ipc {
                 service: service.clone(),
                 source,
             })?;
-        let (_, event) = self.event(spec.name)?;
-        let notifier = event
-            .notifier_builder()
-            .create()
-            .map_err(|source| OpenError::Notifier {
-                service: service.clone(),
-                source,
-            })?;
         Ok(Output {
             publisher,
             wake: self.wake_word(spec.name)?,
-            notifier,
+            notifier: self.notifier(spec.name, &service)?,
             service,
         })
     }
@@ -211,6 +203,17 @@ impl Ipc {
         })
     }
 
+    fn notifier(&self, what: &str, service: &str) -> Result<Notifier<Svc>, OpenError> {
+        let (_, event) = self.event(what)?;
+        event
+            .notifier_builder()
+            .create()
+            .map_err(|source| OpenError::Notifier {
+                service: service.to_owned(),
+                source,
+            })
+    }
+
     fn listener(&self, what: &str, service: &str) -> Result<Listener<Svc>, OpenError> {
         let (_, event) = self.event(what)?;
         event
@@ -224,15 +227,11 @@ impl Ipc {
 
     /// Notifier of the control event `what` ("ready", "start").
     pub fn control_notifier(&self, what: &str) -> Result<Control, OpenError> {
-        let (service, event) = self.event(what)?;
-        let notifier = event
-            .notifier_builder()
-            .create()
-            .map_err(|source| OpenError::Notifier {
-                service: service.clone(),
-                source,
-            })?;
-        Ok(Control { notifier, service })
+        let (service, _) = self.event(what)?;
+        Ok(Control {
+            notifier: self.notifier(what, &service)?,
+            service,
+        })
     }
 
     /// Listener of the control event `what`.

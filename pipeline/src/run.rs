@@ -354,11 +354,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let db = cfg.database()?;
     let settings = cfg.settings()?;
     let mut chain = Chain::build(&db, &settings)?;
-    let views: Vec<(f32, f32)> = db
-        .views()
-        .iter()
-        .map(|v| (v.theta_deg, v.phi_deg))
-        .collect();
+    let views = crate::observers::view_angles(&db);
     drop(db);
     let spec = cfg.source_spec()?;
     let mut source = Source::open(&spec, (settings.width, settings.height), 0)?;

@@ -7,3 +7,12 @@ pub mod viz;
 
 pub use record::{RecordSummary, Recording, run_record};
 pub use viz::{ViewerThread, Viewing, VizSummary, run_viz};
+
+/// (θ, φ) of every view of `db`, degrees, in database order: what the
+/// viewer lays the response out by.
+pub fn view_angles(db: &acch_core::ViewDatabase) -> Vec<(f32, f32)> {
+    db.views()
+        .iter()
+        .map(|v| (v.theta_deg, v.phi_deg))
+        .collect()
+}

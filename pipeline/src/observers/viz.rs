@@ -95,7 +95,7 @@ fn log_items(
                 width,
                 height,
                 mask,
-            } => log.mask(sequence, capture_ns, width, height, &mask),
+            } => log.mask((sequence, capture_ns), (width, height), &mask),
             Item::Response {
                 sequence,
                 capture_ns,
@@ -353,13 +353,7 @@ pub fn run_viz(cfg: &PipelineConfig) -> Result<VizSummary, NodeError> {
             why: "the viz process needs a rerun sink",
         })?;
     lower_priority(Observer::Viz);
-    let db = cfg.database()?;
-    let views: Vec<(f32, f32)> = db
-        .views()
-        .iter()
-        .map(|v| (v.theta_deg, v.phi_deg))
-        .collect();
-    drop(db);
+    let views = super::view_angles(&cfg.database()?);
     let ipc = cfg.ipc("viz")?;
     let mut streams = Streams::open(&ipc, cfg.frame_history)?;
     let (mut out, thread) = Viewing::open(&sink_arg, &views)?;

@@ -54,8 +54,44 @@ pub struct LabelledView<'a> {
     pub scale: f32,
 }
 
+impl<'a> LabelledView<'a> {
+    /// A view of `size` (width, height) pixels seen from `view_deg` (θ, φ)
+    /// at apparent `scale`.
+    pub fn new(
+        rgb: &'a [u8],
+        mask: &'a [u8],
+        (width, height): (u32, u32),
+        (theta_deg, phi_deg): (f32, f32),
+        scale: f32,
+    ) -> Self {
+        LabelledView {
+            rgb,
+            mask,
+            width,
+            height,
+            theta_deg,
+            phi_deg,
+            scale,
+        }
+    }
+
+    /// Checks that view `index`'s buffers match its (non-empty) size;
+    /// returns its pixel count.
+    pub fn check(&self, index: usize) -> Result<usize, TrainError> {
+        let n = self.width as usize * self.height as usize;
+        if self.rgb.len() != n * 3 || self.mask.len() != n || n == 0 {
+            return Err(TrainError::BadView {
+                index,
+                width: self.width,
+                height: self.height,
+            });
+        }
+        Ok(n)
+    }
+}
+
 /// Why training failed.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, thiserror::Error, PartialEq)]
 pub enum TrainError {
     /// No views, or no object pixels in them.
     #[error("no training views with object pixels")]
@@ -108,14 +144,7 @@ pub fn build_database(
     config: &TrainConfig,
 ) -> Result<ViewDatabase, TrainError> {
     for (index, v) in views.iter().enumerate() {
-        let n = v.width as usize * v.height as usize;
-        if v.rgb.len() != n * 3 || v.mask.len() != n {
-            return Err(TrainError::BadView {
-                index,
-                width: v.width,
-                height: v.height,
-            });
-        }
+        v.check(index)?;
     }
     // Palette pixels: a regular subsample of every view's object pixels, so
     // each view contributes in proportion to its area.

@@ -361,7 +361,9 @@ mod tests {
         ));
         assert_eq!(
             RecognitionModel::train(&[], &p, &RecognitionParams::default()),
-            Err(RecognitionError::NoViews)
+            Err(RecognitionError::View(
+                acch_pose::train::TrainError::NoViews
+            ))
         );
         let view = LabelledView {
             rgb: &[0; 5],
@@ -374,7 +376,9 @@ mod tests {
         };
         assert!(matches!(
             RecognitionModel::train(&[view], &p, &RecognitionParams::default()),
-            Err(RecognitionError::BadView { index: 0, .. })
+            Err(RecognitionError::View(
+                acch_pose::train::TrainError::BadView { index: 0, .. }
+            ))
         ));
         assert!(matches!(
             Detector::new(model(), 0, 10),

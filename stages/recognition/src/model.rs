@@ -29,19 +29,10 @@ pub const SECTION: &str = "recognition";
 /// Why a model could not be trained, read or used.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum RecognitionError {
-    /// No training view has object pixels.
-    #[error("no training views with object pixels")]
-    NoViews,
-    /// A training view's buffers do not match its size.
-    #[error("training view {index}: buffer sizes do not match {width}x{height}")]
-    BadView {
-        /// Index of the view.
-        index: usize,
-        /// Declared width.
-        width: u32,
-        /// Declared height.
-        height: u32,
-    },
+    /// The training views are unusable (none with object pixels, or
+    /// buffers that do not match their size).
+    #[error(transparent)]
+    View(#[from] acch_pose::train::TrainError),
     /// Parameters out of range.
     #[error("recognition parameters: {0}")]
     BadParams(String),
@@ -221,14 +212,7 @@ impl RecognitionModel {
         let mut used = Vec::with_capacity(views.len());
         let d = params.pair_distance as usize;
         for (i, v) in views.iter().enumerate() {
-            let n = v.width as usize * v.height as usize;
-            if v.rgb.len() != n * 3 || v.mask.len() != n || n == 0 {
-                return Err(RecognitionError::BadView {
-                    index: i,
-                    width: v.width,
-                    height: v.height,
-                });
-            }
+            v.check(i)?;
             let area = v.mask.iter().filter(|&&m| m != 0).count();
             if area == 0 {
                 continue;
@@ -274,7 +258,7 @@ impl RecognitionModel {
             used.push(i);
         }
         if used.is_empty() {
-            return Err(RecognitionError::NoViews);
+            return Err(acch_pose::train::TrainError::NoViews.into());
         }
         let nv = used.len() as f64;
         let colour_freq: Vec<f32> = colour_sum.iter().map(|s| (s / nv) as f32).collect();

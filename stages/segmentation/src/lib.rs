@@ -64,6 +64,16 @@ pub struct Segment<'a> {
     pub area: u64,
 }
 
+/// `roi`'s first column and row and one past its last, as indices.
+fn corners(roi: Rect) -> (usize, usize, usize, usize) {
+    (
+        roi.x as usize,
+        roi.y as usize,
+        (roi.x + roi.width) as usize,
+        (roi.y + roi.height) as usize,
+    )
+}
+
 /// Segments detections, reusing its buffers.
 #[derive(Clone, Debug)]
 pub struct Segmenter {
@@ -374,12 +384,7 @@ impl Segmenter {
     /// and marks it 255; everything else becomes 0. Returns its area.
     fn keep_largest(&mut self, roi: Rect) -> u64 {
         let w = self.width as usize;
-        let (x0, y0, x1, y1) = (
-            roi.x as usize,
-            roi.y as usize,
-            (roi.x + roi.width) as usize,
-            (roi.y + roi.height) as usize,
-        );
+        let (x0, y0, x1, y1) = corners(roi);
         // Label components 2, 3, ... (wrapping past 254 is avoided by
         // relabelling smaller components to 0 as soon as a larger one wins).
         let mut best = (0u64, 0usize);
@@ -414,12 +419,7 @@ impl Segmenter {
     /// 4-connected to the ROI border become object. Returns the new area.
     fn fill_holes(&mut self, roi: Rect, area: u64) -> u64 {
         let w = self.width as usize;
-        let (x0, y0, x1, y1) = (
-            roi.x as usize,
-            roi.y as usize,
-            (roi.x + roi.width) as usize,
-            (roi.y + roi.height) as usize,
-        );
+        let (x0, y0, x1, y1) = corners(roi);
         // 0 = background; flood the border's background to 1.
         for y in y0..y1 {
             for x in [x0, x1 - 1] {

@@ -31,14 +31,15 @@ pub fn train_on_views(object: &str, renderer: &Renderer, grid: &ViewSpec) -> Tra
         .collect();
     let labelled: Vec<LabelledView> = rendered
         .iter()
-        .map(|r| LabelledView {
-            rgb: r.image.as_raw(),
-            mask: r.mask.as_raw(),
-            width: r.image.width(),
-            height: r.image.height(),
-            theta_deg: r.truth.theta_deg as f32,
-            phi_deg: r.truth.phi_deg as f32,
-            scale: 1.0,
+        .map(|r| {
+            let view = (r.truth.theta_deg as f32, r.truth.phi_deg as f32);
+            LabelledView::new(
+                r.image.as_raw(),
+                r.mask.as_raw(),
+                r.image.dimensions(),
+                view,
+                1.0,
+            )
         })
         .collect();
     let db = build_database(

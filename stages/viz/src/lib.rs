@@ -311,10 +311,8 @@ impl Logger {
     /// Logs a segmentation mask (`width * height` bytes, 0/1).
     pub fn mask(
         &mut self,
-        sequence: u64,
-        capture_ns: u64,
-        width: u32,
-        height: u32,
+        (sequence, capture_ns): (u64, u64),
+        (width, height): (u32, u32),
         mask: &[u8],
     ) -> Result<(), VizError> {
         let expected = width as usize * height as usize;
@@ -490,7 +488,7 @@ mod tests {
         let mut l = Logger::new(rec, &[(30.0, 0.0), (30.0, 90.0)]).unwrap();
         l.frame(0, 10, 4, 2, [5.0, 5.0, 1.5, 0.5], &[9; 24])
             .unwrap();
-        l.mask(0, 10, 4, 2, &[0, 1, 1, 0, 0, 1, 1, 0]).unwrap();
+        l.mask((0, 10), (4, 2), &[0, 1, 1, 0, 0, 1, 1, 0]).unwrap();
         l.response(0, 10, &[0.5, 0.7]).unwrap();
         l.observation(&Observation {
             sequence: 0,
