@@ -16,7 +16,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Stream frames through every stage (default: built-in fruitbox, simulated camera).
-    Run(cmd::run::RunArgs),
+    Run(Box<cmd::run::RunArgs>),
     /// One stage of the pipeline as a process (started by `acch run`).
     Stage(cmd::stage::StageArgs),
     /// Print what arrives on zenoh (seeds, results).
@@ -47,7 +47,7 @@ fn main() -> std::process::ExitCode {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run(args) => cmd::run::run(args),
+        Command::Run(args) => cmd::run::run(*args),
         Command::Bench(args) => cmd::bench::run(args),
         Command::Render(args) => cmd::render::run(args),
         Command::Stage(args) => cmd::stage::run(args),

@@ -91,8 +91,11 @@ fn nan_negative_and_out_of_range_parameters_name_the_key() {
     for (text, key) in [
         ("fps = nan", "fps = NaN"),
         ("fps = -30.0", "fps = -30"),
-        ("distance = -5.0", "distance = -5"),
-        ("distance = nan", "distance = NaN"),
+        ("distance_m = -5.0", "distance_m = -5"),
+        ("distance_m = nan", "distance_m = NaN"),
+        ("object_radius_m = 0.0", "object_radius_m = 0"),
+        ("[ros2]\nnamespace = \"robot1\"", "ros2.namespace = robot1"),
+        ("record_format = \"rosbag\"", "record_format = rosbag"),
         ("frames = -1", "frames"),
         ("width = 0", "width = 0"),
         ("height = 99999", "height = 99999"),
@@ -155,24 +158,12 @@ fn valid_database() -> &'static PathBuf {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let home = std::env::var_os("XDG_CACHE_HOME")
-            .map(|d| PathBuf::from(d).join("acch"))
-            .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
-            .unwrap();
-        let mut dbs: Vec<PathBuf> = std::fs::read_dir(&home)
-            .unwrap()
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                p.file_name()
-                    .unwrap()
-                    .to_string_lossy()
-                    .starts_with("fruitbox-")
-                    && p.extension().is_some_and(|x| x == "acchdb")
-            })
-            .collect();
-        dbs.sort_by_key(|p| std::fs::metadata(p).and_then(|m| m.modified()).ok());
-        dbs.pop().expect("no cached fruitbox database")
+        // The file this build's run trained or loaded, not any fruitbox
+        // database another build left in the shared cache.
+        let object = acch_capture::Object::builtin("fruitbox").unwrap();
+        let path = acch_eval::train::cached_database_path(&object, None);
+        assert!(path.exists(), "{} was not cached", path.display());
+        path
     })
 }
 

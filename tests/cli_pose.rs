@@ -59,6 +59,8 @@ fn train_estimate_and_features_round_trip() {
     for (i, line) in labels.lines().skip(1).enumerate() {
         let cols: Vec<&str> = line.split(',').collect();
         let (theta, phi): (f32, f32) = (cols[1].parse().unwrap(), cols[2].parse().unwrap());
+        // The labels' distance, metres: the known distance of the estimate.
+        let distance_m = cols[3];
         let image = format!("test/view_{i:04}.png");
         let mask = format!("test/view_{i:04}_mask.png");
         let out = ok(&acch(
@@ -69,8 +71,8 @@ fn train_estimate_and_features_round_trip() {
                 &image,
                 "--mask",
                 &mask,
-                "--distance",
-                "5",
+                "--distance-m",
+                distance_m,
                 "--csv",
                 "response.csv",
                 "--plot",

@@ -42,7 +42,7 @@ fn renders_a_small_grid_with_labels_truth_and_contact_sheet() {
     let lines: Vec<&str> = labels.lines().collect();
     assert_eq!(
         lines[0],
-        "file,theta_deg,phi_deg,distance,bbox_x,bbox_y,bbox_w,bbox_h,mask"
+        "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask"
     );
     assert_eq!(lines.len(), 1 + 8);
     let expected = [
@@ -61,7 +61,10 @@ fn renders_a_small_grid_with_labels_truth_and_contact_sheet() {
         assert_eq!(f[0], format!("view_{i:04}.png"));
         assert_eq!(f[1].parse::<f64>().unwrap(), theta as f64);
         assert_eq!(f[2].parse::<f64>().unwrap(), phi as f64);
-        assert_eq!(f[3], "5");
+        // 5 bounding radii of the 24 x 15 x 30 cm box, in metres.
+        let radius_m = 0.5 * (0.24f64.powi(2) + 0.15f64.powi(2) + 0.30f64.powi(2)).sqrt();
+        let distance_m: f64 = f[3].parse().unwrap();
+        assert!((distance_m - 5.0 * radius_m).abs() < 1e-6, "{line}");
         let (bx, by, bw, bh): (u32, u32, u32, u32) = (
             f[4].parse().unwrap(),
             f[5].parse().unwrap(),

@@ -3,12 +3,10 @@
 //! the chain every protocol runs.
 
 use crate::EvalError;
-use acch_capture::{
-    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose,
-};
+use acch_capture::{Background, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose};
 use acch_confidence::Tolerance;
 use acch_core::ViewDatabase;
-use acch_pipeline::wire::{ArmPose, Intrinsics, Maybe, Truth};
+use acch_pipeline::wire::{Intrinsics, Maybe};
 use acch_pipeline::{Chain, FrameHeader, StageSettings};
 use acch_pose::train::LabelledView;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -116,34 +114,33 @@ pub fn render_views(
     out
 }
 
-/// A rendered view as training input, with its ground-truth mask.
+/// A rendered view as training input, with its ground-truth mask and
+/// where the object centre projects.
 pub fn labelled(r: &Rendered, train_distance: f64) -> LabelledView<'_> {
-    LabelledView::new(
+    let view = LabelledView::new(
         r.image.as_raw(),
         r.mask.as_raw(),
         r.image.dimensions(),
         (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
         (train_distance / r.truth.distance) as f32,
-    )
+    );
+    match r.truth.object_centre_px() {
+        Some(c) => view.with_centre([c.x as f32, c.y as f32]),
+        None => view,
+    }
 }
 
-/// The frame header of rendered frame `sequence`, with its ground truth
-/// and, when `arm` is set, the arm's camera pose (so seeding fuses over
-/// the camera's motion), as the simulated camera sends it.
-pub fn frame_of(r: &Rendered, sequence: u64, arm: bool) -> FrameHeader {
+/// The frame header of rendered frame `sequence` of an object of real
+/// radius `radius_m`, with its ground truth in metres and, when `arm` is
+/// set, the arm's camera pose (so seeding fuses over the camera's motion),
+/// as the simulated camera sends it.
+pub fn frame_of(r: &Rendered, sequence: u64, arm: bool, radius_m: f64) -> FrameHeader {
     let (w, h) = r.image.dimensions();
     let mut f = FrameHeader::rgb(sequence, w, h, Intrinsics::from(&r.truth.intrinsics));
-    let t = &r.truth;
-    f.envelope.frame.truth = Maybe::Present(Truth {
-        theta_deg: t.theta_deg,
-        phi_deg: t.phi_deg,
-        distance: t.distance,
-        camera_from_object: t.world_from_camera.inverse().to_cols_array(),
-    });
+    let (truth, pose) = acch_pipeline::source::metric_truth(&r.truth, radius_m);
+    f.envelope.frame.truth = Maybe::Present(truth);
     if arm {
-        f.envelope.frame.arm = Maybe::Present(ArmPose {
-            world_from_camera: t.world_from_camera.to_cols_array(),
-        });
+        f.envelope.frame.arm = Maybe::Present(pose);
     }
     f
 }
@@ -157,7 +154,7 @@ pub fn chain(db: &ViewDatabase) -> Result<Chain, EvalError> {
         &StageSettings {
             width: k.width,
             height: k.height,
-            distance: Some(DEFAULT_DISTANCE),
+            distance_m: Some(db.train_distance_m as f64),
             unrated: false,
         },
     )?)

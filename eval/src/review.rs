@@ -219,7 +219,7 @@ pub fn run_episode(
     for moves in 0..=max_moves {
         renderer.render_into(&view, scene.wrapping_add(moves as u64), &mut img);
         // One view at a time: no arm pose, nothing fused across views.
-        let frame = protocol::frame_of(&img, moves as u64, false);
+        let frame = protocol::frame_of(&img, moves as u64, false, object.radius_m());
         let result = chain.process(&frame, img.image.as_raw());
         if result.accepted()
             && let Some(e) = result.pose().done()

@@ -417,7 +417,7 @@ fn run_trajectory(
     for frame in trajectory.frames().take(o.frames) {
         renderer.render_into(&frame.view, scene.wrapping_add(frame.index), &mut img);
         let result = chain.process(
-            &protocol::frame_of(&img, frame.index, true),
+            &protocol::frame_of(&img, frame.index, true, object.radius_m()),
             img.image.as_raw(),
         );
         let estimate = result.pose().done();

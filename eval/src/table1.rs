@@ -163,7 +163,12 @@ pub fn table1(
     let mut train_seconds = 0.0;
     for v in &variants {
         let t = Instant::now();
-        let db = train_views(object.name(), DEFAULT_DISTANCE as f32, &labelled, &v.config)?;
+        let db = train_views(
+            object.name(),
+            (DEFAULT_DISTANCE * object.radius_m()) as f32,
+            &labelled,
+            &v.config,
+        )?;
         if results.is_empty() {
             train_seconds = t.elapsed().as_secs_f64();
         }
@@ -310,7 +315,7 @@ fn evaluate(
     let settings = StageSettings {
         width: w,
         height: h,
-        distance: v.known_distance.then_some(DEFAULT_DISTANCE),
+        distance_m: v.known_distance.then_some(db.train_distance_m as f64),
         unrated: true,
     };
     let mut pose = Pose::new(db, &settings)?.with_refinement(v.refinement);

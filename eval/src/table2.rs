@@ -185,7 +185,7 @@ pub fn table2(
     let known = StageSettings {
         width: w,
         height: h,
-        distance: Some(DEFAULT_DISTANCE),
+        distance_m: Some(db.train_distance_m as f64),
         unrated: true,
     };
     // The same pose stage on the true mask, and on the segmented region
@@ -194,7 +194,7 @@ pub fn table2(
     let mut roi_pose = Pose::new(
         &db,
         &StageSettings {
-            distance: None,
+            distance_m: None,
             ..known
         },
     )?;
@@ -225,7 +225,7 @@ pub fn table2(
             let fails_or_none = |e: Option<(f32, f32)>| e.is_none_or(|e| fails(e, truth));
             // The object out of view: any detection is a false one.
             let out = chain.process(
-                &protocol::frame_of(empty, sequence, false),
+                &protocol::frame_of(empty, sequence, false, object.radius_m()),
                 empty.image.as_raw(),
             );
             sequence += 1;
@@ -233,7 +233,7 @@ pub fn table2(
             max_empty = max_empty.max(chain.stages().recognition.detector().best_score());
 
             let out = chain.process(
-                &protocol::frame_of(scene, sequence, false),
+                &protocol::frame_of(scene, sequence, false, object.radius_m()),
                 scene.image.as_raw(),
             );
             sequence += 1;

@@ -29,7 +29,7 @@ pub const CONFIDENCE_SEED_BASE: u64 = 1_000_000;
 
 /// Revision of the default training recipe; part of cached databases'
 /// names so that a changed recipe retrains instead of reusing a stale file.
-pub const TRAINING_REVISION: u32 = 3;
+pub const TRAINING_REVISION: u32 = 4;
 
 /// Seeds of the validation scenes the network's input is chosen on start
 /// here: disjoint from the training scenes' and from every protocol's test
@@ -72,7 +72,8 @@ pub struct RenderedTraining {
     pub views: ViewSpec,
     /// Their background.
     pub background: Background,
-    /// Camera distance, object bounding radii.
+    /// Camera distance, object bounding radii (the renderer's unit; the
+    /// database stores it in metres, by the object's real radius).
     pub distance: f64,
     /// Seed of the views and the scene.
     pub seed: u64,
@@ -90,14 +91,15 @@ impl Default for RenderedTraining {
     }
 }
 
-/// Histograms and recognition model from labelled views.
+/// Histograms and recognition model from labelled views taken at
+/// `distance_m` metres.
 pub fn train_views(
     object: &str,
-    distance: f32,
+    distance_m: f32,
     views: &[LabelledView<'_>],
     config: &TrainConfig,
 ) -> Result<ViewDatabase, EvalError> {
-    let mut db = build_database(object, distance, views, config)?;
+    let mut db = build_database(object, distance_m, views, config)?;
     let recognition = RecognitionModel::train(views, &db.palette, &RecognitionParams::default())?;
     db.sections
         .insert(acch_recognition::SECTION.to_owned(), recognition.to_bytes());
@@ -123,7 +125,8 @@ pub fn train_rendered(
         .iter()
         .map(|r| protocol::labelled(r, training.distance))
         .collect();
-    train_views(object.name(), training.distance as f32, &labelled, config)
+    let distance_m = training.distance * object.radius_m();
+    train_views(object.name(), distance_m as f32, &labelled, config)
 }
 
 /// One estimate of a confidence-training scene.
@@ -142,12 +145,12 @@ pub fn unrated_chain(
     db: &ViewDatabase,
     width: u32,
     height: u32,
-    distance: f64,
+    distance_m: f64,
 ) -> Result<Chain, EvalError> {
     let settings = StageSettings {
         width,
         height,
-        distance: Some(distance),
+        distance_m: Some(distance_m),
         unrated: true,
     };
     let mut stages = Stages::new(db, &settings)?;
@@ -178,13 +181,15 @@ pub fn confidence_samples(
             .par_iter()
             .enumerate()
             .map_init(
-                || unrated_chain(db, w, h, distance),
+                || unrated_chain(db, w, h, distance * object.radius_m()),
                 |chain, (i, r)| -> Result<Option<ConfidenceSample>, EvalError> {
                     let chain = chain
                         .as_mut()
                         .map_err(|e| EvalError::Worker(e.to_string()))?;
-                    let out =
-                        chain.process(&protocol::frame_of(r, i as u64, false), r.image.as_raw());
+                    let out = chain.process(
+                        &protocol::frame_of(r, i as u64, false, object.radius_m()),
+                        r.image.as_raw(),
+                    );
                     let Some(e) = out.pose().done() else {
                         return Ok(None);
                     };
@@ -467,7 +472,7 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
     if rows.is_empty() {
         return Err(EvalError::Input(format!("{}: no rows", labels.display())));
     }
-    let mut distances: Vec<f64> = rows.iter().map(|r| r.distance).collect();
+    let mut distances: Vec<f64> = rows.iter().map(|r| r.distance_m).collect();
     distances.sort_by(f64::total_cmp);
     let train_distance = distances[distances.len() / 2];
     let bar = protocol::progress(rows.len() as u64, "loading");
@@ -501,7 +506,7 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
                 mask,
                 rgb.dimensions(),
                 (row.theta_deg as f32, row.phi_deg as f32),
-                (train_distance / row.distance) as f32,
+                (train_distance / row.distance_m) as f32,
             )
         })
         .collect();
@@ -543,6 +548,21 @@ pub fn cache_dir(dir: Option<PathBuf>) -> PathBuf {
         .unwrap_or_else(|| std::env::temp_dir().join("acch"))
 }
 
+/// The file the default database of `object` is cached in: the format
+/// version, the build and the training recipe are in the name, so builds
+/// sharing a cache directory never read each other's databases.
+pub fn cached_database_path(object: &Object, dir: Option<PathBuf>) -> PathBuf {
+    // The size is in the name: a database's distances are metres of it.
+    cache_dir(dir).join(format!(
+        "{}-{:.1}mm-v{}-{}-r{}.acchdb",
+        object.name(),
+        object.radius_m() * 1000.0,
+        acch_core::database::FORMAT_VERSION,
+        env!("CARGO_PKG_VERSION"),
+        TRAINING_REVISION
+    ))
+}
+
 /// The default database of a built-in object and the file it is cached
 /// in: trained on first use with the default recipe and cached, so later
 /// runs start at once.
@@ -550,14 +570,8 @@ pub fn cached_database(
     object: &Arc<Object>,
     dir: Option<PathBuf>,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let dir = cache_dir(dir);
-    let path = dir.join(format!(
-        "{}-v{}-{}-r{}.acchdb",
-        object.name(),
-        acch_core::database::FORMAT_VERSION,
-        env!("CARGO_PKG_VERSION"),
-        TRAINING_REVISION
-    ));
+    let path = cached_database_path(object, dir);
+    let dir = path.parent().map(PathBuf::from).unwrap_or_default();
     if path.exists() {
         match ViewDatabase::load(&path) {
             Ok(db) => return Ok((db, path)),

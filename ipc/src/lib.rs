@@ -34,6 +34,14 @@ pub fn now_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// CLOCK_REALTIME now, nanoseconds since the Unix epoch (the clock of ROS
+/// 2 time stamps and MCAP log times).
+pub fn wall_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
 /// Sets iceoryx2's log level from `IOX2_LOG_LEVEL`, or to errors only:
 /// it warns in every process that it runs on its default configuration,
 /// which is intended.

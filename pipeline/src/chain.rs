@@ -158,12 +158,13 @@ pub enum Pacing {
 /// Streams up to `frames` frames (0: until the source ends) of `source`
 /// through `chain`, paced by `pacing`, handing each to `observer`. Each
 /// frame's trail starts when the source has made it (a camera's exposure),
-/// as in the capture process. Returns the frames processed.
+/// as in the capture process; with `arm`, it carries the arm's pose of that
+/// moment. Returns the frames processed.
 pub fn run_source(
     chain: &mut Chain,
     source: &mut Source,
-    frames: u64,
-    pacing: Pacing,
+    (frames, pacing): (u64, Pacing),
+    arm: Option<&crate::ros2::ArmFeed>,
     observer: &mut dyn Observe,
 ) -> Result<u64, RunSourceError> {
     let t0 = Instant::now();
@@ -185,6 +186,9 @@ pub fn run_source(
         }
         let captured = now_ns();
         p.header.stamp_captured(captured);
+        if let Some(arm) = arm {
+            arm.stamp(&mut p.header, captured);
+        }
         p.header.envelope_mut().trail.stages[0].published_ns = now_ns();
         chain.process_observed(&p.header, p.pixels.bytes(), observer)?;
         source.recycle(p.pixels);

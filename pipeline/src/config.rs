@@ -42,9 +42,14 @@ pub struct PipelineConfig {
     pub replay: String,
     /// Seed of the trajectory and the scene.
     pub seed: u64,
-    /// Known camera distance to the object centre (object bounding radii);
-    /// unset = from the ROI's scale against training.
-    pub distance: Option<f64>,
+    /// The camera's distance to the object centre the arm reports, metres;
+    /// unset = the database's training distance (where the simulated
+    /// camera flies, and what a real arm holding the camera there reports).
+    pub distance_m: Option<f64>,
+    /// The simulated object's real bounding radius, metres; unset = the
+    /// built-in object's own size (for example 0.206 for `fruitbox`). The
+    /// default database is trained for this size.
+    pub object_radius_m: Option<f64>,
     /// Frames queued for each reader of the frame stream.
     pub frame_history: usize,
     /// Width of the synthetic camera's frames, pixels.
@@ -66,6 +71,13 @@ pub struct PipelineConfig {
     /// MCAP file the `record` process writes every frame and result to;
     /// unset = no recorder process.
     pub record: Option<PathBuf>,
+    /// What `record` writes: `foxglove` (frames, masks, responses, results
+    /// and seeds as Foxglove schemas and JSON, replayable with
+    /// `--source mcap:FILE`) or `ros2` (a rosbag2 bag directory of the ROS
+    /// 2 topics and every frame, for `ros2 bag play`).
+    pub record_format: String,
+    /// ROS 2 topics over zenoh, the rmw_zenoh way (no ROS installed).
+    pub ros2: crate::ros2::Ros2Config,
     /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
     /// the normal scheduler. Needs CAP_SYS_NICE (or an rtprio limit).
     pub realtime_priority: u8,
@@ -144,7 +156,8 @@ impl Default for PipelineConfig {
             fps: 30.0,
             replay: "recorded".into(),
             seed: 0,
-            distance: Some(DEFAULT_DISTANCE),
+            distance_m: None,
+            object_radius_m: None,
             frame_history: 4,
             width: 640,
             height: 480,
@@ -153,6 +166,8 @@ impl Default for PipelineConfig {
             zenoh: ZenohConfig::default(),
             rerun: None,
             record: None,
+            record_format: "foxglove".into(),
+            ros2: Default::default(),
             realtime_priority: 0,
             cpu_latency_us: None,
             stage_cpus: "auto".into(),
@@ -212,14 +227,19 @@ impl PipelineConfig {
                 "must be a number in 0..=10000 (0 = free-running)",
             ));
         }
-        if let Some(d) = self.distance
-            && !(d.is_finite() && d > 0.0 && d <= 1e6)
-        {
-            return Err(bad(
-                "distance",
-                &d,
-                "must be a positive number of object radii",
-            ));
+        for (key, v) in [
+            ("distance_m", self.distance_m),
+            ("object_radius_m", self.object_radius_m),
+        ] {
+            if let Some(d) = v
+                && !(d.is_finite() && d > 0.0 && d <= 1000.0)
+            {
+                return Err(bad(
+                    key,
+                    &d,
+                    "must be a positive number of metres up to 1000",
+                ));
+            }
         }
         let [lo, hi] = self.elevation_deg;
         if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 90.0) {
@@ -266,6 +286,21 @@ impl PipelineConfig {
         }
         if !matches!(self.transport.as_str(), "shm" | "copy") {
             return Err(bad("transport", &self.transport, "must be shm or copy"));
+        }
+        if !matches!(self.record_format.as_str(), "foxglove" | "ros2") {
+            return Err(bad(
+                "record_format",
+                &self.record_format,
+                "must be foxglove or ros2",
+            ));
+        }
+        self.ros2.validate(&self.object)?;
+        if self.ros2.arm_topic.is_some() && self.zenoh.connect.is_empty() {
+            return Err(bad(
+                "ros2.arm_topic",
+                &self.ros2.arm_topic.as_deref().unwrap_or_default(),
+                "needs zenoh.connect: the endpoint of the ROS 2 router or of the arm's publisher",
+            ));
         }
         if !matches!(self.replay.as_str(), "recorded" | "free") {
             return Err(bad("replay", &self.replay, "must be recorded or free"));
@@ -412,8 +447,11 @@ impl PipelineConfig {
         if let Some(file) = s.strip_prefix("mcap:") {
             return Ok(SourceSpec::Mcap(file.into()));
         }
-        let object = acch_capture::Object::builtin(&self.object).map_err(ConfigError::Object)?;
+        let object = self.scene_object()?;
         let [lo, hi] = self.elevation_deg;
+        let distance_m = self
+            .distance_m
+            .unwrap_or(DEFAULT_DISTANCE * object.radius_m());
         Ok(SourceSpec::Synthetic(SyntheticCamera {
             object: std::sync::Arc::new(object),
             background: self.background.parse().map_err(ConfigError::Object)?,
@@ -421,7 +459,7 @@ impl PipelineConfig {
             seed: self.seed,
             width: self.width,
             height: self.height,
-            distance: self.distance.unwrap_or(DEFAULT_DISTANCE),
+            distance_m,
             fps: self.fps,
             elevation_deg: (lo, hi),
         }))
@@ -437,13 +475,23 @@ impl PipelineConfig {
         })
     }
 
-    /// What the stages are built with.
-    pub fn settings(&self) -> Result<StageSettings, ConfigError> {
+    /// The built-in object of the simulated scene, at its configured size.
+    pub fn scene_object(&self) -> Result<acch_capture::Object, ConfigError> {
+        let object = acch_capture::Object::builtin(&self.object).map_err(ConfigError::Object)?;
+        match self.object_radius_m {
+            Some(r) => object.with_radius_m(r).map_err(ConfigError::Object),
+            None => Ok(object),
+        }
+    }
+
+    /// What the stages over `db` are built with: the known distance is
+    /// `distance_m`, or `db`'s training distance.
+    pub fn settings(&self, db: &ViewDatabase) -> Result<StageSettings, ConfigError> {
         let (width, height) = self.frame_size()?;
         Ok(StageSettings {
             width,
             height,
-            distance: self.distance,
+            distance_m: Some(self.distance_m.unwrap_or(db.train_distance_m as f64)),
             unrated: self.unrated,
         })
     }
@@ -486,8 +534,12 @@ mod tests {
             ("fps = nan", "fps"),
             ("fps = -1.0", "fps"),
             ("fps = inf", "fps"),
-            ("distance = -2.0", "distance"),
-            ("distance = nan", "distance"),
+            ("distance_m = -2.0", "distance_m"),
+            ("distance_m = nan", "distance_m"),
+            ("object_radius_m = 0.0", "object_radius_m"),
+            ("object_radius_m = 1e9", "object_radius_m"),
+            // The key before distances were metric: refused, never misread.
+            ("distance = 5.0", "distance"),
             ("width = 0", "width"),
             ("height = 100000", "height"),
             ("frame_history = 0", "frame_history"),
@@ -540,7 +592,7 @@ mod tests {
         ]
     }
 
-    const KEYS: [&str; 20] = [
+    const KEYS: [&str; 21] = [
         "object",
         "db",
         "source",
@@ -550,7 +602,8 @@ mod tests {
         "fps",
         "replay",
         "seed",
-        "distance",
+        "distance_m",
+        "object_radius_m",
         "frame_history",
         "width",
         "height",
@@ -586,7 +639,8 @@ mod tests {
             match PipelineConfig::parse(&text) {
                 Ok(c) => {
                     prop_assert!(c.fps.is_finite() && c.fps >= 0.0);
-                    prop_assert!(c.distance.is_none_or(|d| d.is_finite() && d > 0.0));
+                    prop_assert!(c.distance_m.is_none_or(|d| d.is_finite() && d > 0.0));
+                    prop_assert!(c.object_radius_m.is_none_or(|d| d.is_finite() && d > 0.0));
                     prop_assert!((16..=8192).contains(&c.width) && (16..=8192).contains(&c.height));
                     prop_assert!(c.frame_history >= 1);
                     prop_assert!(c.stage_cpus.parse::<StageCpus>().is_ok());

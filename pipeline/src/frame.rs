@@ -69,6 +69,7 @@ impl FrameHeader {
                     intrinsics,
                     truth: Maybe::Absent,
                     arm: Maybe::Absent,
+                    stamp_ns: 0,
                 },
                 trail: Trail::default(),
                 reads: Default::default(),
@@ -80,8 +81,10 @@ impl FrameHeader {
     }
 
     /// Stamps the moment the frame exists (a camera's exposure time
-    /// stamp): capture's receive time and the trail's start.
+    /// stamp): capture's receive time, the trail's start and the frame's
+    /// wall-clock time stamp.
     pub fn stamp_captured(&mut self, now_ns: u64) {
+        self.envelope.frame.stamp_ns = acch_ipc::wall_ns();
         let t = &mut self.envelope.trail;
         t.captured_ns = now_ns;
         t.stages[0].received_ns = now_ns;

@@ -18,10 +18,13 @@ pub struct Stamp {
     pub captured_ns: u64,
     /// Result published by the seeding stage.
     pub published_ns: u64,
+    /// Frame captured, ns since the Unix epoch: the stamp of its ROS 2
+    /// messages.
+    pub wall_ns: u64,
 }
 
-/// The unit every translation of a result is in.
-pub const TRANSLATION_UNIT: &str = "object bounding radii";
+/// The unit every translation and distance of a result is in.
+pub const TRANSLATION_UNIT: &str = "m";
 
 /// The JSON published at `<prefix>/<object>/seed`.
 #[derive(Serialize, Debug, Clone)]
@@ -56,11 +59,25 @@ pub struct TruthJson {
     pub theta_deg: f64,
     /// Azimuth, degrees.
     pub phi_deg: f64,
-    /// Distance, object bounding radii.
+    /// Distance to the object centre.
     pub distance: f64,
     /// True camera_from_object translation.
     pub translation: [f64; 3],
+    /// Unit of the distance and the translation.
+    pub translation_unit: &'static str,
     /// True camera_from_object rotation [x, y, z, w].
+    pub rotation_xyzw: [f64; 4],
+}
+
+/// The arm's camera pose in its base frame (`world_from_camera`, OpenCV
+/// camera axes), in a result.
+#[derive(Serialize, Debug, Clone)]
+pub struct ArmJson {
+    /// Camera position.
+    pub translation: [f64; 3],
+    /// Unit of the translation.
+    pub translation_unit: &'static str,
+    /// Camera orientation [x, y, z, w].
     pub rotation_xyzw: [f64; 4],
 }
 
@@ -73,10 +90,15 @@ pub struct FusedJson<'a> {
     pub view_covariance_deg2: [f64; 4],
     /// camera_from_object translation.
     pub translation: [f64; 3],
+    /// Unit of the translation.
+    pub translation_unit: &'static str,
     /// camera_from_object rotation [x, y, z, w].
     pub rotation_xyzw: [f64; 4],
     /// Row-major 3x3 rotation covariance, radians².
     pub rotation_covariance: &'a [f64],
+    /// Row-major 3x3 translation covariance, m² (the last fused seed's,
+    /// carried through the motion).
+    pub translation_covariance: &'a [f64],
     /// What this frame's estimate did: none, started, fused, gated, restarted.
     pub outcome: &'static str,
     /// Estimates fused since the filter (re)started.
@@ -116,6 +138,8 @@ pub struct ResultJson<'a> {
     pub fused: Option<FusedJson<'a>>,
     /// Ground truth, when the source knows it.
     pub truth: Option<TruthJson>,
+    /// The arm's camera pose the frame came with, when known.
+    pub arm: Option<ArmJson>,
     /// Per stage [received_ns, published_ns], CLOCK_MONOTONIC.
     pub trail: [(&'static str, [u64; 2]); STAGES],
 }
@@ -137,6 +161,7 @@ impl<'a> ResultJson<'a> {
             clock: "CLOCK_MONOTONIC",
             captured_ns: e.trail.captured_ns,
             published_ns: e.trail.of(StageId::Seeding).published_ns,
+            wall_ns: e.frame.stamp_ns,
         };
         let verdict = m.rating().verdict();
         let seed = m
@@ -161,8 +186,9 @@ impl<'a> ResultJson<'a> {
             TruthJson {
                 theta_deg: t.theta_deg,
                 phi_deg: t.phi_deg,
-                distance: t.distance,
+                distance: t.distance_m,
                 translation,
+                translation_unit: TRANSLATION_UNIT,
                 rotation_xyzw,
             }
         });
@@ -173,8 +199,10 @@ impl<'a> ResultJson<'a> {
                     view_deg: f.view_deg,
                     view_covariance_deg2: f.view_covariance_deg2,
                     translation,
+                    translation_unit: TRANSLATION_UNIT,
                     rotation_xyzw,
                     rotation_covariance: &f.rotation_covariance,
+                    translation_covariance: &f.translation_covariance,
                     outcome: m.seeding.fusion.name(),
                     fused: f.fused,
                     since_update: f.since_update,
@@ -196,6 +224,14 @@ impl<'a> ResultJson<'a> {
             seed,
             fused,
             truth,
+            arm: e.frame.arm.get().map(|a| {
+                let (translation, rotation_xyzw) = quaternion(&a.world_from_camera);
+                ArmJson {
+                    translation,
+                    translation_unit: TRANSLATION_UNIT,
+                    rotation_xyzw,
+                }
+            }),
             trail: StageId::ALL.map(|s| {
                 let t = e.trail.of(s);
                 (s.name(), [t.received_ns, t.published_ns])
@@ -247,46 +283,76 @@ impl JsonWriter {
 }
 
 /// The zenoh sink of the seeding stage: every result at
-/// `<prefix>/<object>/result`, every accepted seed at `.../seed`.
+/// `<prefix>/<object>/result`, every accepted seed at `.../seed`, and with
+/// `[ros2] enabled` the ROS 2 topics on the same session.
 pub struct ZenohSink {
     object: String,
     seeds: acch_ipc::Publisher,
     results: acch_ipc::Publisher,
     json: JsonWriter,
+    ros2: Option<crate::ros2::Ros2Out>,
     // The session outlives its publishers.
     _session: zenoh::Session,
 }
 
 impl ZenohSink {
-    /// Opens a session on `config` and declares `object`'s publishers.
-    pub fn open(
-        config: &acch_ipc::ZenohConfig,
-        object: &str,
-    ) -> Result<Self, acch_ipc::ZenohError> {
-        let session = acch_ipc::open_session(&config.listen, &config.connect)?;
+    /// Opens a session on `cfg`'s zenoh endpoints and declares its object's
+    /// publishers.
+    pub fn open(cfg: &crate::PipelineConfig) -> Result<Self, crate::observe::ObserveError> {
+        let (config, object) = (&cfg.zenoh, cfg.object.as_str());
+        let session = acch_ipc::open_session(&config.listen, &config.connect)
+            .map_err(acch_ipc::IpcError::from)?;
+        let publisher = |key: String| {
+            acch_ipc::Publisher::declare(&session, &key).map_err(acch_ipc::IpcError::from)
+        };
         Ok(ZenohSink {
-            seeds: acch_ipc::Publisher::declare(
-                &session,
-                &format!("{}/{object}/seed", config.prefix),
-            )?,
-            results: acch_ipc::Publisher::declare(
-                &session,
-                &format!("{}/{object}/result", config.prefix),
-            )?,
+            seeds: publisher(format!("{}/{object}/seed", config.prefix))?,
+            results: publisher(format!("{}/{object}/result", config.prefix))?,
             object: object.to_owned(),
             json: JsonWriter::default(),
+            ros2: cfg
+                .ros2
+                .enabled
+                .then(|| crate::ros2::Ros2Out::declare(&session, &cfg.ros2, object))
+                .transpose()?,
             _session: session,
         })
     }
 }
 
+impl ZenohSink {
+    /// Moves the ROS 2 image publisher, if configured, to a thread reading
+    /// the frame stream (the seeding process has no frames of its own).
+    pub fn spawn_images(
+        &mut self,
+        cfg: &crate::PipelineConfig,
+    ) -> Option<std::thread::JoinHandle<Result<(), crate::observe::ObserveError>>> {
+        let images = self.ros2.as_mut()?.images.take()?;
+        Some(images.spawn(cfg))
+    }
+}
+
 impl crate::observe::Observe for ZenohSink {
+    fn frame(
+        &mut self,
+        h: &crate::FrameHeader,
+        pixels: &[u8],
+    ) -> Result<(), crate::observe::ObserveError> {
+        match self.ros2.as_mut().and_then(|r| r.images.as_mut()) {
+            Some(images) => images.frame(h, pixels),
+            None => Ok(()),
+        }
+    }
+
     fn result(&mut self, m: &Seeded) -> Result<(), crate::observe::ObserveError> {
         let (result, seed) = self.json.write(&self.object, m)?;
         if let Some(seed) = seed {
             self.seeds.put(seed).map_err(acch_ipc::IpcError::from)?;
         }
         self.results.put(result).map_err(acch_ipc::IpcError::from)?;
+        if let Some(ros2) = &mut self.ros2 {
+            ros2.publish(m)?;
+        }
         Ok(())
     }
 }

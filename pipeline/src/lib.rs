@@ -24,6 +24,7 @@ pub mod json;
 pub mod node;
 pub mod observe;
 pub mod observers;
+pub mod ros2;
 pub mod run;
 pub mod source;
 pub mod stage;

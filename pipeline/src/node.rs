@@ -283,6 +283,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let start = ipc.control_listener(START)?;
     let spec = cfg.source_spec()?;
     let source = Source::open(&spec, (w, h), cfg.first_frame)?;
+    let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     let pace = cfg.pace();
     // A free-running replay watches the final results to pace itself ...
     let done = (pace == Some(Pace::Free))
@@ -376,7 +377,11 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
         // The frame exists now (a camera's exposure time stamp); capture's
         // own span is the publishing (rendering or decoding it ran ahead,
         // `taken_ns` long, and is not part of the frame's latency).
-        header.stamp_captured(now_ns());
+        let captured = now_ns();
+        header.stamp_captured(captured);
+        if let Some(arm) = &arm {
+            arm.stamp(&mut header, captured);
+        }
         tracing::trace!("frame {i}: source took {taken_ns} ns");
         if let Some(tx) = &mut copies {
             // Published = the copy starts; the header follows on iceoryx2

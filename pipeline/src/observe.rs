@@ -25,6 +25,9 @@ pub enum ObserveError {
     /// Publishing or receiving failed.
     #[error(transparent)]
     Ipc(#[from] acch_ipc::IpcError),
+    /// Publishing on ROS 2 or writing a rosbag2 bag failed.
+    #[error(transparent)]
+    Ros2(#[from] crate::ros2::Ros2OutError),
     /// A result could not be written as JSON.
     #[error("writing a result as JSON")]
     Json(#[from] serde_json::Error),

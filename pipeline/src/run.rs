@@ -8,7 +8,7 @@ use crate::config::{ConfigError, Pace, PipelineConfig};
 use crate::json::{JsonLines, ZenohSink};
 use crate::node::{NodeError, READY, START};
 use crate::observe::{Each, Observe, ObserveError, Observer};
-use crate::observers::{Recording, Viewing};
+use crate::observers::{RunRecording, Viewing};
 use crate::source::Source;
 use crate::stages::{BuildError, Seeded};
 use crate::streams;
@@ -260,7 +260,7 @@ pub fn hold_cpu_latency(
 /// results file, as configured.
 struct LocalObservers {
     viewer: Option<(Viewing, crate::observers::ViewerThread)>,
-    recording: Option<Recording>,
+    recording: Option<RunRecording>,
     zenoh: Option<ZenohSink>,
     results: Option<JsonLines>,
     got: Collect,
@@ -292,13 +292,9 @@ impl LocalObservers {
             recording: cfg
                 .record
                 .as_deref()
-                .map(|p| Recording::create(p, &cfg.object, views.len()))
+                .map(|p| RunRecording::create(cfg, p, views.len()))
                 .transpose()?,
-            zenoh: opts
-                .zenoh
-                .then(|| ZenohSink::open(&cfg.zenoh, &cfg.object))
-                .transpose()
-                .map_err(IpcError::from)?,
+            zenoh: opts.zenoh.then(|| ZenohSink::open(cfg)).transpose()?,
             results: opts
                 .results
                 .as_deref()
@@ -352,7 +348,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     })?;
     let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
     let db = cfg.database()?;
-    let settings = cfg.settings()?;
+    let settings = cfg.settings(&db)?;
     let mut chain = Chain::build(&db, &settings)?;
     let views = crate::observers::view_angles(&db);
     drop(db);
@@ -366,11 +362,12 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     };
     let (cpu0, _) = self_usage();
     let t0 = Instant::now();
+    let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     run_source(
         &mut chain,
         &mut source,
-        cfg.frames,
-        pacing,
+        (cfg.frames, pacing),
+        arm.as_ref(),
         &mut observers.each(),
     )?;
     let elapsed = t0.elapsed().as_secs_f64();
@@ -451,7 +448,7 @@ pub fn run_processes(
     cfg.validate()?;
     // One clear error here rather than one from every stage process.
     let db = cfg.database()?;
-    crate::stages::Stages::new(&db, &cfg.settings()?)?;
+    crate::stages::Stages::new(&db, &cfg.settings(&db)?)?;
     drop(db);
     let stale = remove_stale_resources();
     if stale > 0 {
@@ -722,7 +719,7 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
         return crate::node::run_capture(&cfg);
     }
     let db = cfg.database()?;
-    let settings = cfg.settings()?;
+    let settings = cfg.settings(&db)?;
     use crate::node::run_stage;
     use crate::stages::{Confidence, Pose, Recognition, Seeding, Segmentation};
     fn none<T>(_: &T) -> Result<(), ObserveError> {
@@ -735,7 +732,9 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
         StageId::Confidence => run_stage(&cfg, Confidence::new(&db, &settings)?, none),
         StageId::Seeding => {
             let stage = Seeding::new(&db, &settings)?;
-            let mut zenoh = ZenohSink::open(&cfg.zenoh, &cfg.object).map_err(IpcError::from)?;
+            let mut zenoh = ZenohSink::open(&cfg)?;
+            // Ends with the process.
+            let _images = zenoh.spawn_images(&cfg);
             run_stage(&cfg, stage, |m: &Seeded| zenoh.result(m))
         }
         StageId::Capture => unreachable!("handled above"),

@@ -72,8 +72,8 @@ pub struct SyntheticCamera {
     pub width: u32,
     /// Frame height, pixels.
     pub height: u32,
-    /// Camera distance to the object centre, bounding radii.
-    pub distance: f64,
+    /// Camera distance to the object centre, metres.
+    pub distance_m: f64,
     /// Frame rate the trajectory is sampled at (it sets how far the arm
     /// moves per frame).
     pub fps: f64,
@@ -88,6 +88,25 @@ impl SyntheticCamera {
     pub fn intrinsics(&self) -> acch_capture::Intrinsics {
         sized_intrinsics(self.width, self.height)
     }
+}
+
+/// The ground truth of a rendered frame and where the simulated arm put
+/// the camera (the object frame is the world frame), in metres: the
+/// renderer works in object bounding radii, of `radius_m` metres each.
+pub fn metric_truth(t: &acch_capture::GroundTruth, radius_m: f64) -> (Truth, ArmPose) {
+    let mut world_from_camera = t.world_from_camera;
+    world_from_camera.translation *= radius_m;
+    (
+        Truth {
+            theta_deg: t.theta_deg,
+            phi_deg: t.phi_deg,
+            distance_m: t.distance * radius_m,
+            camera_from_object: world_from_camera.inverse().to_cols_array(),
+        },
+        ArmPose {
+            world_from_camera: world_from_camera.to_cols_array(),
+        },
+    )
 }
 
 /// Intrinsics of a `width` x `height` synthetic camera with the default
@@ -206,6 +225,8 @@ enum Kind {
         template: Box<Rendered>,
         intrinsics: Intrinsics,
         seed: u64,
+        /// The object's real bounding radius: the renderer's unit, metres.
+        radius_m: f64,
     },
     Folder {
         dir: PathBuf,
@@ -254,7 +275,9 @@ impl Source {
                 );
                 let (lo, hi) = c.elevation_deg;
                 let fps = if c.fps > 0.0 { c.fps } else { 30.0 };
-                let trajectory = Trajectory::with_elevation(c.seed, fps, c.distance, lo, hi)?;
+                let radius_m = c.object.radius_m();
+                let distance = c.distance_m / radius_m;
+                let trajectory = Trajectory::with_elevation(c.seed, fps, distance, lo, hi)?;
                 let template = Box::new(renderer.render(&trajectory.frame(0).view, 0));
                 Kind::Synthetic {
                     renderer: Box::new(renderer),
@@ -262,6 +285,7 @@ impl Source {
                     template,
                     intrinsics: Intrinsics::from(&c.intrinsics()),
                     seed: c.seed,
+                    radius_m,
                 }
             }
             SourceSpec::Folder(dir) => {
@@ -382,6 +406,7 @@ impl Source {
                 template,
                 intrinsics,
                 seed,
+                radius_m,
             } => {
                 let view = trajectory.frame(sequence).view;
                 let mut buffer = self.spare.pop().unwrap_or_else(|| template.clone());
@@ -392,19 +417,11 @@ impl Source {
                 );
                 let (w, h) = buffer.image.dimensions();
                 let mut header = FrameHeader::rgb(sequence, w, h, *intrinsics);
-                let t = &buffer.truth;
+                let (truth, arm) = metric_truth(&buffer.truth, *radius_m);
                 let frame = &mut header.envelope.frame;
-                frame.truth = Maybe::Present(Truth {
-                    theta_deg: t.theta_deg,
-                    phi_deg: t.phi_deg,
-                    distance: t.distance,
-                    camera_from_object: t.world_from_camera.inverse().to_cols_array(),
-                });
-                // The simulated arm's forward kinematics: where it put the
-                // camera (the object frame is the world frame here).
-                frame.arm = Maybe::Present(ArmPose {
-                    world_from_camera: t.world_from_camera.to_cols_array(),
-                });
+                frame.truth = Maybe::Present(truth);
+                // The simulated arm's forward kinematics.
+                frame.arm = Maybe::Present(arm);
                 Ok(Some(Produced {
                     header,
                     pixels: Pixels::Rendered(buffer),
@@ -425,11 +442,11 @@ impl Source {
                     .to_rgb8();
                 let mut header = FrameHeader::rgb(sequence, img.width(), img.height(), *intrinsics);
                 if let Some(l) = label {
-                    let view = ViewPose::new(l.theta_deg, l.phi_deg, l.distance)?;
+                    let view = ViewPose::new(l.theta_deg, l.phi_deg, l.distance_m)?;
                     header.envelope.frame.truth = Maybe::Present(Truth {
                         theta_deg: l.theta_deg,
                         phi_deg: l.phi_deg,
-                        distance: l.distance,
+                        distance_m: l.distance_m,
                         camera_from_object: view.camera_from_world().to_cols_array(),
                     });
                 }
@@ -456,7 +473,7 @@ impl Source {
                     header.envelope.frame.truth = Maybe::Present(Truth {
                         theta_deg: t.theta_deg,
                         phi_deg: t.phi_deg,
-                        distance: t.distance,
+                        distance_m: t.distance_m,
                         camera_from_object: t.camera_from_object,
                     });
                 }

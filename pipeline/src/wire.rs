@@ -293,10 +293,10 @@ pub struct Truth {
     pub theta_deg: f64,
     /// Azimuth, degrees.
     pub phi_deg: f64,
-    /// Camera distance to the object centre (object bounding radii).
-    pub distance: f64,
+    /// Camera distance to the object centre, metres.
+    pub distance_m: f64,
     /// `camera_from_object`, column-major 3x4 (rotation columns then
-    /// translation), OpenCV camera.
+    /// translation in metres), OpenCV camera.
     pub camera_from_object: [f64; 12],
 }
 
@@ -326,6 +326,9 @@ pub struct FrameMeta {
     pub truth: Maybe<Truth>,
     /// The arm's camera pose, when known.
     pub arm: Maybe<ArmPose>,
+    /// When the frame was taken, ns since the Unix epoch (the system
+    /// clock at capture): the time stamp of every ROS 2 message about it.
+    pub stamp_ns: u64,
 }
 
 /// When one stage saw one frame: CLOCK_MONOTONIC ns, 0 = not reached.

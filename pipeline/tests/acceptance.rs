@@ -49,7 +49,8 @@ fn settings(unrated: bool) -> StageSettings {
     StageSettings {
         width: 640,
         height: 480,
-        distance: Some(DEFAULT_DISTANCE),
+        // The training distance: the frames are rendered there.
+        distance_m: Some(DEFAULT_DISTANCE * Object::builtin("fruitbox").unwrap().radius_m()),
         unrated,
     }
 }

@@ -169,7 +169,7 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         width: w,
         height: h,
         // Unknown: the pose stage's scale follows each region.
-        distance: None,
+        distance_m: None,
         unrated: false,
     };
     let mut chain = Chain::build(&db, &settings).unwrap();
@@ -261,8 +261,8 @@ fn a_stage_process_loop_allocates_only_iceoryx2s_loan_once_warm() {
     let stage_cfg = cfg.clone();
     std::thread::spawn(move || {
         let db = stage_cfg.database().unwrap();
-        let stage =
-            acch_pipeline::stages::Recognition::new(&db, &stage_cfg.settings().unwrap()).unwrap();
+        let stage = acch_pipeline::stages::Recognition::new(&db, &stage_cfg.settings(&db).unwrap())
+            .unwrap();
         WATCHED.with(|w| w.set(true));
         let _ = acch_pipeline::node::run_stage(&stage_cfg, stage, |_| Ok(()));
     });

@@ -1,7 +1,7 @@
 //! Arguments shared by several subcommands: choosing an object, histogram
 //! options.
 
-use acch_capture::Object;
+use acch_capture::{Object, UpAxis};
 use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling};
 use acch_pose::train::TrainConfig;
 use anyhow::{Context, Result, bail};
@@ -9,25 +9,59 @@ use clap::Args;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// Which object to render: a built-in one or an OBJ mesh.
+/// Which object to render, and its real size: a built-in one or an OBJ
+/// mesh.
 #[derive(Args, Clone, Debug)]
 pub struct ObjectArgs {
-    /// Built-in object: fruitbox, can or tricolor.
+    /// Built-in object: fruitbox (a 24 x 15 x 30 cm printed box), can (a
+    /// labelled drink can, 8.4 x 12 cm) or tricolor (three untextured
+    /// blocks, 10 cm long).
     #[arg(long, value_name = "NAME", conflicts_with = "mesh")]
     pub object: Option<String>,
-    /// OBJ mesh with an MTL `map_Kd` texture (paths relative to the MTL).
+    /// Textured OBJ mesh instead: it needs texture coordinates and an MTL
+    /// material with a map_Kd texture (PNG, path relative to the MTL file).
+    /// Its coordinates are taken as metres (see --mesh-unit-m).
     #[arg(long, value_name = "FILE.obj")]
     pub mesh: Option<PathBuf>,
+    /// Which axis of the mesh file points up: +y (the OBJ convention), -y,
+    /// +z, -z, +x or -x.
+    #[arg(
+        long,
+        value_name = "AXIS",
+        default_value = "+y",
+        allow_hyphen_values = true
+    )]
+    pub mesh_up: UpAxis,
+    /// The mesh file's unit in metres (0.001 for millimetres, 0.0254 for
+    /// inches): poses and distances come out in metres.
+    #[arg(
+        long,
+        value_name = "METRES",
+        requires = "mesh",
+        conflicts_with = "object_radius_m"
+    )]
+    pub mesh_unit_m: Option<f64>,
+    /// The object's real bounding radius in metres (half its largest
+    /// extent through the centre of its bounding box), overriding the
+    /// built-in size or the mesh's units.
+    #[arg(long, value_name = "METRES")]
+    pub object_radius_m: Option<f64>,
 }
 
 impl ObjectArgs {
-    /// Loads the chosen object; `fruitbox` when none is named.
+    /// Loads the chosen object at its real size; `fruitbox` when none is
+    /// named.
     pub fn load(&self) -> Result<Arc<Object>> {
         let object = match (&self.object, &self.mesh) {
-            (_, Some(path)) => Object::load_obj(path)
+            (_, Some(path)) => Object::load_obj_with_up(path, self.mesh_up)
                 .with_context(|| format!("loading mesh {}", path.display()))?,
             (Some(name), None) => Object::builtin(name)?,
             (None, None) => Object::builtin("fruitbox")?,
+        };
+        let object = match (self.mesh_unit_m, self.object_radius_m) {
+            (Some(unit), _) => object.with_mesh_unit_m(unit).context("--mesh-unit-m")?,
+            (None, Some(r)) => object.with_radius_m(r).context("--object-radius-m")?,
+            (None, None) => object,
         };
         Ok(Arc::new(object))
     }

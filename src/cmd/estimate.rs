@@ -27,10 +27,10 @@ pub struct Input {
     /// wrote. Without it, recognition and segmentation find the object.
     #[arg(long, value_name = "MASK")]
     pub mask: Option<PathBuf>,
-    /// Camera distance in object bounding radii, when known; otherwise the
-    /// scale comes from the object's apparent size.
-    #[arg(long)]
-    pub distance: Option<f32>,
+    /// Camera distance to the object centre in metres, when known;
+    /// otherwise the scale comes from the object's apparent size.
+    #[arg(long, value_name = "METRES")]
+    pub distance_m: Option<f32>,
 }
 
 /// An input image loaded, quantised and masked.
@@ -79,10 +79,10 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
     let db = ViewDatabase::load(&input.db)?;
     let rgb = read_image(&input.image)?.to_rgb8();
     let (w, h) = rgb.dimensions();
-    if let Some(d) = input.distance
+    if let Some(d) = input.distance_m
         && !(d.is_finite() && d > 0.0)
     {
-        bail!("--distance {d} must be a positive number");
+        bail!("--distance-m {d} must be a positive number of metres");
     }
     let (mask, roi) = match &input.mask {
         Some(mask_path) => {
@@ -98,7 +98,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
             let settings = StageSettings {
                 width: w,
                 height: h,
-                distance: input.distance.map(f64::from),
+                distance_m: input.distance_m.map(f64::from),
                 unrated: true,
             };
             let mut chain = Chain::build(&db, &settings)?;
@@ -117,7 +117,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
             }
         }
     };
-    let scale = input.distance.map(|d| db.train_distance / d);
+    let scale = input.distance_m.map(|d| db.train_distance_m / d);
     let index = db.palette.quantise(rgb.as_raw(), w, h);
     let confidence = match ConfidenceModel::load(&db) {
         Ok(m) => Some(m),

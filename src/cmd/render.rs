@@ -4,13 +4,13 @@
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
+use super::common::ObjectArgs;
 use acch_capture::labels::{LabelRow, write_labels};
 use acch_capture::{
-    Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Object, Rendered, Renderer,
-    SceneConfig, TextureSet, UpAxis, ViewSpec, check_distance, derive_seed,
+    Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Rendered, Renderer,
+    SceneConfig, TextureSet, ViewSpec, check_distance, derive_seed,
 };
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
@@ -23,26 +23,8 @@ use rayon::prelude::*;
 #[derive(Args, Debug)]
 #[command(group(ArgGroup::new("source").required(true).args(["object", "mesh"])))]
 pub struct RenderArgs {
-    /// Built-in object to render: fruitbox (printed cereal-style box), can
-    /// (cylinder with an asymmetric label) or tricolor (untextured, three colours).
-    #[arg(long, value_name = "NAME")]
-    object: Option<String>,
-
-    /// Textured OBJ mesh to render instead of a built-in object. It needs
-    /// texture coordinates and an MTL material with a map_Kd texture (PNG,
-    /// path relative to the MTL file); it is scaled to bounding radius 1.
-    #[arg(long, value_name = "FILE.obj")]
-    mesh: Option<PathBuf>,
-
-    /// Which axis of the mesh file points up: +y (the OBJ convention), -y,
-    /// +z, -z, +x or -x.
-    #[arg(
-        long,
-        value_name = "AXIS",
-        default_value = "+y",
-        allow_hyphen_values = true
-    )]
-    mesh_up: UpAxis,
+    #[command(flatten)]
+    object: ObjectArgs,
 
     /// Views to render. grid:THETAS:PHI_STEP renders every azimuth 0, STEP,
     /// ... < 360 for each comma-separated elevation (degrees, 0-90), theta
@@ -151,17 +133,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     intrinsics.validate()?;
 
-    let object = match (&args.object, &args.mesh) {
-        (Some(name), _) => Object::builtin(name)?,
-        (None, Some(path)) => Object::load_obj_with_up(path, args.mesh_up)?,
-        (None, None) => bail!("give --object NAME or --mesh FILE.obj"),
-    };
+    let object = args.object.load()?;
+    let radius_m = object.radius_m();
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output directory {}", args.out.display()))?;
 
     let views = args.views.views(args.distance, args.seed);
     let config = SceneConfig {
-        object: Arc::new(object),
+        object,
         background: args.background,
         intrinsics,
         effects: Effects {
@@ -213,7 +192,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             let thumb = want_thumbs.then(|| thumbnail(&frame.image));
             progress.inc(1);
             Ok((
-                LabelRow::from_truth(file, Some(mask), &frame.truth),
+                LabelRow::from_truth(file, Some(mask), &frame.truth, radius_m),
                 frame.truth.clone(),
                 frame_seed,
                 thumb,
@@ -226,7 +205,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let rows: Vec<LabelRow> = results.iter().map(|r| r.0.clone()).collect();
     write_labels(&labels_path, &rows)?;
     let truth_path = args.out.join("truth.jsonl");
-    write_truth(&truth_path, &results, &object_name, &args)?;
+    write_truth(&truth_path, &results, (&object_name, radius_m), &args)?;
     if let Some(sheet) = &args.contact_sheet {
         let thumbs: Vec<&RgbImage> = results.iter().filter_map(|r| r.3.as_ref()).collect();
         write_contact_sheet(sheet, &thumbs)?;
@@ -263,7 +242,7 @@ fn write_png(
 fn write_truth(
     path: &Path,
     results: &[(LabelRow, GroundTruth, u64, Option<RgbImage>)],
-    object: &str,
+    (object, object_radius_m): (&str, f64),
     args: &RenderArgs,
 ) -> Result<()> {
     let write = || -> Result<()> {
@@ -285,7 +264,10 @@ fn write_truth(
                 "background": args.background.to_string(),
                 "theta_deg": truth.theta_deg,
                 "phi_deg": truth.phi_deg,
+                // The renderer's unit: distances and world_from_camera are
+                // in object bounding radii of object_radius_m metres.
                 "distance": truth.distance,
+                "object_radius_m": object_radius_m,
                 "intrinsics": truth.intrinsics,
                 "world_from_camera": matrix,
                 "bbox": truth.bbox,

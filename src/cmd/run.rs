@@ -104,9 +104,22 @@ pub struct RunArgs {
     /// viewer) or connect:URL.
     #[arg(long, value_name = "SINK")]
     pub(crate) rerun: Option<String>,
-    /// Record every frame and result to this MCAP file.
+    /// Record every frame and result: to this MCAP file, or with
+    /// --record-format ros2 to a rosbag2 bag directory of this name (less
+    /// .mcap).
     #[arg(long, value_name = "FILE.mcap")]
     pub(crate) record: Option<PathBuf>,
+    /// What --record writes: foxglove (frames, masks, responses, results;
+    /// replayable with --source mcap:FILE) or ros2 (the ROS 2 topics and
+    /// every frame as sensor_msgs/Image, for `ros2 bag play`).
+    #[arg(long, value_name = "FORMAT")]
+    pub(crate) record_format: Option<String>,
+    /// Publish on ROS 2 topics over zenoh as an rmw_zenoh node: the seeds
+    /// and fused poses (geometry_msgs/PoseWithCovarianceStamped, metres),
+    /// camera info and /tf, under the [ros2] namespace (see
+    /// docs/ros2.md). No ROS installation needed.
+    #[arg(long)]
+    pub(crate) ros2: bool,
     /// Also write every frame's latencies (ns) into the JSON summary.
     #[arg(long, hide = true)]
     pub(crate) samples: bool,
@@ -127,7 +140,8 @@ impl RunArgs {
         }
         set!(frames => frames, fps => fps, seed => seed, transport => transport,
              source => source, replay => replay, rt_priority => realtime_priority,
-             stage_cpus => stage_cpus);
+             stage_cpus => stage_cpus, record_format => record_format);
+        cfg.ros2.enabled |= self.ros2;
         if let Some(b) = self.background {
             cfg.background = b.to_string();
         }
@@ -152,6 +166,9 @@ impl RunArgs {
         if let Some(name) = &self.object.object {
             cfg.object.clone_from(name);
         }
+        if let Some(r) = self.object.object_radius_m {
+            cfg.object_radius_m = Some(r);
+        }
         cfg.unrated |= self.unrated;
         // A replay runs the whole recording unless told otherwise.
         if let Some(path) = cfg.source.strip_prefix("mcap:")
@@ -163,7 +180,7 @@ impl RunArgs {
         }
         cfg.validate().context("invalid pipeline configuration")?;
         if cfg.db.is_none() {
-            let object = std::sync::Arc::new(acch_capture::Object::builtin(&cfg.object)?);
+            let object = std::sync::Arc::new(cfg.scene_object()?);
             let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
             let (_, path) = acch_eval::train::cached_database(&object, cache)?;
             cfg.db = Some(path);

@@ -14,7 +14,8 @@ pub struct TrainArgs {
     #[command(flatten)]
     object: ObjectArgs,
     /// Train from real images instead: a folder with labels.csv (file,
-    /// theta_deg, phi_deg, distance, bbox, mask) as `acch render` writes it.
+    /// theta_deg, phi_deg, distance_m, bbox, mask) as `acch render` writes
+    /// it; distances in metres make the poses metric.
     #[arg(long, value_name = "DIR", conflicts_with_all = ["object", "mesh"])]
     images: Option<PathBuf>,
     /// Training views: grid:THETAS:PHI_STEP or random:N.
@@ -23,7 +24,8 @@ pub struct TrainArgs {
     /// Background of the rendered training views.
     #[arg(long, default_value = "plain")]
     background: Background,
-    /// Camera distance of rendered views, in object bounding radii.
+    /// Camera distance of rendered views, in object bounding radii (the
+    /// database stores it in metres, by the object's real radius).
     #[arg(long, default_value_t = DEFAULT_DISTANCE)]
     distance: f64,
     /// Seed of the rendered views.

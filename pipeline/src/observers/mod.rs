@@ -5,7 +5,7 @@
 pub mod record;
 pub mod viz;
 
-pub use record::{RecordSummary, Recording, run_record};
+pub use record::{RecordSummary, Recording, RunRecording, run_record};
 pub use viz::{ViewerThread, Viewing, VizSummary, run_viz};
 
 /// (θ, φ) of every view of `db`, degrees, in database order: what the

@@ -1,6 +1,8 @@
 //! The recorder: every frame, region, response, result and seed of a run
 //! into MCAP (`acch run --record FILE.mcap`), as Foxglove protobuf and JSON
-//! messages ([`acch_record`]).
+//! messages ([`acch_record`]), or (`--record-format ros2`) a rosbag2 bag of
+//! the run's ROS 2 topics ([`crate::ros2::Ros2Bag`]) that `ros2 bag play`
+//! replays.
 
 use crate::PipelineConfig;
 use crate::frame::FrameHeader;
@@ -50,8 +52,6 @@ pub struct Recording {
     /// The frame-sized mask of the current region, pasted from its crop.
     mask: Vec<u8>,
     response: Vec<f32>,
-    /// Tells a free-running replay a result is recorded (see capture).
-    recorded: Option<Control>,
 }
 
 impl Recording {
@@ -67,7 +67,6 @@ impl Recording {
             views,
             mask: Vec::new(),
             response: Vec::with_capacity(views),
-            recorded: None,
         })
     }
 
@@ -110,7 +109,7 @@ impl Observe for Recording {
             truth: f.truth.get().map(|t| FrameTruth {
                 theta_deg: t.theta_deg,
                 phi_deg: t.phi_deg,
-                distance: t.distance,
+                distance_m: t.distance_m,
                 camera_from_object: t.camera_from_object,
             }),
             arm_world_from_camera: f.arm.get().map(|a| a.world_from_camera),
@@ -153,8 +152,98 @@ impl Observe for Recording {
                 .seed(seq, t, seed.translation, seed.rotation_xyzw)?;
             self.s.seeds += 1;
         }
+        Ok(())
+    }
+}
+
+/// The recording of a run in its configured format (`record_format`).
+pub struct RunRecording {
+    format: Format,
+    /// Tells a free-running replay a result is recorded (see capture).
+    recorded: Option<Control>,
+}
+
+enum Format {
+    Foxglove(Box<Recording>),
+    Ros2(Box<crate::ros2::Ros2Bag>),
+}
+
+impl RunRecording {
+    /// Creates `path` for `cfg`'s run over a database of `views` views: an
+    /// MCAP file, or with `record_format = "ros2"` a bag directory.
+    pub fn create(cfg: &PipelineConfig, path: &Path, views: usize) -> Result<Self, ObserveError> {
+        let format = if cfg.record_format == "ros2" {
+            let dir = crate::ros2::bag_dir(path);
+            let bag = crate::ros2::Ros2Bag::create(&dir, &cfg.ros2, &cfg.object)?;
+            tracing::info!("record: a rosbag2 bag in {}", dir.display());
+            Format::Ros2(Box::new(bag))
+        } else {
+            Format::Foxglove(Box::new(Recording::create(path, &cfg.object, views)?))
+        };
+        Ok(RunRecording {
+            format,
+            recorded: None,
+        })
+    }
+
+    /// Completes the recording and returns its counts, with `missed`
+    /// (frames, masks, responses, results) from the streams.
+    pub fn finish(self, missed: [u64; 4]) -> Result<RecordSummary, ObserveError> {
+        match self.format {
+            Format::Foxglove(r) => r.finish(missed),
+            Format::Ros2(bag) => {
+                let [frames, seeds, _, results] = bag.counts;
+                let file = bag.mcap_path().display().to_string();
+                bag.finish()?;
+                Ok(RecordSummary {
+                    file,
+                    frames,
+                    results,
+                    seeds,
+                    frames_missed: missed[0],
+                    masks_missed: missed[1],
+                    responses_missed: missed[2],
+                    results_missed: missed[3],
+                    ..Default::default()
+                })
+            }
+        }
+    }
+
+    fn inner(&mut self) -> &mut dyn Observe {
+        match &mut self.format {
+            Format::Foxglove(r) => r.as_mut(),
+            Format::Ros2(b) => b.as_mut(),
+        }
+    }
+}
+
+impl Observe for RunRecording {
+    fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<(), ObserveError> {
+        self.inner().frame(h, pixels)
+    }
+
+    fn region(&mut self, h: &Segmented, payload: &[u8]) -> Result<(), ObserveError> {
+        self.inner().region(h, payload)
+    }
+
+    fn response(&mut self, h: &Posed, payload: &[u8]) -> Result<(), ObserveError> {
+        self.inner().response(h, payload)
+    }
+
+    fn results_start(&mut self, gaps: &[crate::observe::Gaps; 4]) {
+        self.inner().results_start(gaps);
+    }
+
+    fn results_end(&mut self, gaps: &[crate::observe::Gaps; 4]) -> Result<(), ObserveError> {
+        self.inner().results_end(gaps)
+    }
+
+    fn result(&mut self, m: &Seeded) -> Result<(), ObserveError> {
+        self.inner().result(m)?;
         if let Some(n) = &self.recorded {
             // A free-running replay paces itself on this (see capture).
+            let seq = m.envelope().frame.sequence;
             n.notify((seq % acch_record::RECORDED_IDS) as usize)
                 .map_err(acch_ipc::IpcError::from)?;
         }
@@ -177,7 +266,7 @@ pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
     let views = cfg.database()?.views().len();
     let ipc = cfg.ipc("record")?;
     let mut streams = Streams::open(&ipc, cfg.frame_history)?;
-    let mut out = Recording::create(&path, &cfg.object, views)?;
+    let mut out = RunRecording::create(cfg, &path, views)?;
     out.recorded = Some(ipc.control_notifier(acch_record::RECORDED_EVENT)?);
     announce_ready(&ipc, Observer::Record.ready_id())?;
     streams.observe_until_stopped(&ipc, &mut out)?;
@@ -200,8 +289,5 @@ pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
 /// Unix-epoch time minus CLOCK_MONOTONIC, ns: maps capture times to the
 /// wall-clock times MCAP tools expect.
 pub fn epoch_offset_ns() -> u64 {
-    let wall = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64);
-    wall.saturating_sub(acch_ipc::now_ns())
+    acch_ipc::wall_ns().saturating_sub(acch_ipc::now_ns())
 }

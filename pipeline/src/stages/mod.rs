@@ -24,9 +24,9 @@ pub struct StageSettings {
     pub width: u32,
     /// Frame height, pixels.
     pub height: u32,
-    /// Known camera distance to the object centre (bounding radii): the
-    /// scale follows from it; `None` reads it off the segmented region.
-    pub distance: Option<f64>,
+    /// Known camera distance to the object centre, metres: the scale
+    /// follows from it; `None` reads it off the segmented region.
+    pub distance_m: Option<f64>,
     /// Run a database that has no confidence network: every estimate is
     /// reported as unrated and none is accepted. Without it such a
     /// database is refused.
@@ -37,7 +37,7 @@ impl StageSettings {
     /// The apparent scale of the object at the known distance, relative to
     /// the database's training distance.
     pub fn scale(&self, db: &ViewDatabase) -> Option<f32> {
-        self.distance.map(|d| db.train_distance / d as f32)
+        self.distance_m.map(|d| db.train_distance_m / d as f32)
     }
 }
 

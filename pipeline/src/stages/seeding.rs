@@ -13,7 +13,87 @@ use acch_seeding::{
     CovarianceModel, Distance, FilterConfig, GridSpacing, Measurement, Pinhole, SeedInput,
     ViewFilter, theta_censored,
 };
-use glam::{DAffine3, DVec2};
+use glam::{DAffine3, DMat3, DVec2};
+
+/// The training views' centre offsets (where the object centre projects
+/// relative to the centre of the silhouette's box, pixels at the training
+/// scale), by θ slice and φ, interpolated between views: the offset moves
+/// fast near the top (a can seen from 80° shows a band of its side under
+/// its lid, one from 90° none), so the nearest view alone is off by the
+/// whole band.
+struct CentreOffsets {
+    /// θ slices in ascending order, each with its views by ascending φ.
+    slices: Vec<(f32, Vec<PhiOffset>)>,
+}
+
+/// A view's φ, degrees, and its centre offset, pixels.
+type PhiOffset = (f32, [f32; 2]);
+
+impl CentreOffsets {
+    fn new(db: &ViewDatabase) -> Self {
+        let mut slices: Vec<(f32, Vec<PhiOffset>)> = Vec::new();
+        for v in db.views() {
+            let view = (v.phi_deg.rem_euclid(360.0), v.centre_offset_px);
+            match slices
+                .iter_mut()
+                .find(|(t, _)| (*t - v.theta_deg).abs() < 1e-3)
+            {
+                Some((_, views)) => views.push(view),
+                None => slices.push((v.theta_deg, vec![view])),
+            }
+        }
+        slices.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, views) in &mut slices {
+            views.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        CentreOffsets { slices }
+    }
+
+    /// The offset of view (θ, φ): linear in φ within the two slices around
+    /// θ, then linear in θ between them (clamped at the outer slices).
+    fn at(&self, theta_deg: f32, phi_deg: f32) -> [f32; 2] {
+        let Some(last) = self.slices.len().checked_sub(1) else {
+            return [0.0; 2];
+        };
+        let above = self
+            .slices
+            .partition_point(|(t, _)| *t < theta_deg)
+            .min(last);
+        let below = above.saturating_sub(1);
+        let (ta, tb) = (self.slices[below].0, self.slices[above].0);
+        let w = if tb > ta {
+            ((theta_deg - ta) / (tb - ta)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let (a, b) = (
+            Self::along(&self.slices[below].1, phi_deg),
+            Self::along(&self.slices[above].1, phi_deg),
+        );
+        [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])]
+    }
+
+    /// Linear in φ between the two views of a slice around it (wrapping at
+    /// 360°).
+    fn along(views: &[PhiOffset], phi_deg: f32) -> [f32; 2] {
+        let n = views.len();
+        if n == 0 {
+            return [0.0; 2];
+        }
+        let phi = phi_deg.rem_euclid(360.0);
+        let next = views.partition_point(|(p, _)| *p <= phi) % n;
+        let prev = (next + n - 1) % n;
+        let (p0, o0) = views[prev];
+        let (p1, o1) = views[next];
+        let span = (p1 - p0).rem_euclid(360.0);
+        let w = if span > 0.0 {
+            ((phi - p0).rem_euclid(360.0) / span).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        [o0[0] + w * (o1[0] - o0[0]), o0[1] + w * (o1[1] - o0[1])]
+    }
+}
 
 /// Relative standard deviation of a known distance handed to the seed (the
 /// arm's kinematics).
@@ -25,7 +105,7 @@ pub const SCALE_DISTANCE_RELATIVE_SIGMA: f64 = 0.1;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct SeedPose {
-    /// Object centre in the camera frame (object bounding radii).
+    /// Object centre in the camera frame, metres.
     pub translation: [f64; 3],
     /// camera_from_object rotation, quaternion x, y, z, w.
     pub rotation_xyzw: [f64; 4],
@@ -79,6 +159,10 @@ pub struct FusedPose {
     pub camera_from_object: [f64; 12],
     /// Row-major 3x3 rotation covariance, radians² (camera frame).
     pub rotation_covariance: [f64; 9],
+    /// Row-major 3x3 translation covariance, m² (camera frame): the
+    /// translation is the last fused seed's, carried through the motion,
+    /// and so is its covariance.
+    pub translation_covariance: [f64; 9],
     /// Estimates fused since the filter (re)started.
     pub fused: u32,
     /// Frames predicted since the last fused estimate.
@@ -162,8 +246,10 @@ impl Seeded {
 /// The seeding stage (the filter's state lives here).
 pub struct Seeding {
     grid: GridSpacing,
-    train_distance: f64,
-    distance: Option<f64>,
+    /// Metres.
+    train_distance_m: f64,
+    /// The known distance, metres.
+    distance_m: Option<f64>,
     covariance: CovarianceModel,
     filter: ViewFilter,
     /// The database's lowest θ slice: an estimate there may stand for any
@@ -172,6 +258,12 @@ pub struct Seeding {
     /// The arm's camera pose at the last frame, to predict by the motion
     /// since (absolute poses, so frames dropped upstream cost nothing).
     last_arm: Option<DAffine3>,
+    /// Where the object centre projects relative to the centre of its
+    /// silhouette's box, per training view.
+    centre_offsets: CentreOffsets,
+    /// The translation covariance of the last fused seed, carried through
+    /// the motion since.
+    translation_covariance: DMat3,
 }
 
 impl Seeding {
@@ -184,8 +276,8 @@ impl Seeding {
         );
         Ok(Seeding {
             grid,
-            train_distance: db.train_distance as f64,
-            distance: settings.distance,
+            train_distance_m: db.train_distance_m as f64,
+            distance_m: settings.distance_m,
             covariance: CovarianceModel::default(),
             filter: ViewFilter::new(FilterConfig::default())?,
             lowest_theta_deg: db
@@ -194,6 +286,8 @@ impl Seeding {
                 .map(|v| v.theta_deg as f64)
                 .fold(f64::INFINITY, f64::min),
             last_arm: None,
+            centre_offsets: CentreOffsets::new(db),
+            translation_covariance: DMat3::ZERO,
         })
     }
 
@@ -225,11 +319,19 @@ impl Seeding {
             return;
         };
         let arm = DAffine3::from_cols_array(&arm.world_from_camera);
-        if let Some(last) = self.last_arm
-            && let Err(e) = self.filter.predict(&(last.inverse() * arm))
-        {
-            tracing::warn!("frame {}: {e}: fused pose dropped", frame.sequence);
-            self.filter.reset();
+        if let Some(last) = self.last_arm {
+            let motion = last.inverse() * arm;
+            match self.filter.predict(&motion) {
+                Ok(()) => {
+                    // As the filter moves the pose: motion⁻¹ · pose.
+                    let r = motion.matrix3;
+                    self.translation_covariance = r.transpose() * self.translation_covariance * r;
+                }
+                Err(e) => {
+                    tracing::warn!("frame {}: {e}: fused pose dropped", frame.sequence);
+                    self.filter.reset();
+                }
+            }
         }
         self.last_arm = Some(arm);
     }
@@ -240,12 +342,16 @@ impl Seeding {
         let pose = input.posed.pose.done()?;
         let roi = input.posed.segmented.region.done()?;
         let k = input.envelope().frame.intrinsics;
+        // The centre's ray, not the silhouette box's: the offset of the
+        // estimated view at this frame's scale.
+        let (cx, cy) = acch_core::Rect::from(roi).centre();
+        let offset = self.centre_offsets.at(pose.theta_deg, pose.phi_deg);
         Some(SeedInput {
             theta_deg: (pose.theta_deg as f64).clamp(0.0, 90.0),
             phi_deg: pose.phi_deg as f64,
             roi_centre_px: DVec2::new(
-                roi.x as f64 + (roi.width as f64 - 1.0) / 2.0,
-                roi.y as f64 + (roi.height as f64 - 1.0) / 2.0,
+                (cx + offset[0] * pose.scale) as f64,
+                (cy + offset[1] * pose.scale) as f64,
             ),
             intrinsics: Pinhole {
                 fx: k.fx,
@@ -253,13 +359,13 @@ impl Seeding {
                 cx: k.cx,
                 cy: k.cy,
             },
-            distance: match self.distance {
+            distance: match self.distance_m {
                 Some(d) => Distance::Known {
                     value: d,
                     sigma: KNOWN_DISTANCE_RELATIVE_SIGMA * d,
                 },
                 None => Distance::FromScale {
-                    train_distance: self.train_distance,
+                    train_distance: self.train_distance_m,
                     scale: (pose.scale as f64).max(1e-3),
                     relative_sigma: SCALE_DISTANCE_RELATIVE_SIGMA,
                 },
@@ -309,6 +415,9 @@ impl Seeding {
                 ],
                 camera_from_object: f.camera_from_object,
                 rotation_covariance: std::array::from_fn(|i| f.rotation_covariance[i / 3][i % 3]),
+                translation_covariance: std::array::from_fn(|i| {
+                    self.translation_covariance.col(i % 3)[i / 3]
+                }),
                 fused: f.fused,
                 since_update: f.since_update,
             })
@@ -335,6 +444,14 @@ impl Stage for Seeding {
             Some(s) => match acch_seeding::seed(&s, &self.covariance) {
                 Ok(seed) => {
                     let fusion = self.fuse(&s, sequence);
+                    if matches!(fusion, Fusion::Started | Fusion::Fused | Fusion::Restarted) {
+                        let c = &seed.covariance;
+                        self.translation_covariance = DMat3::from_cols_array_2d(&[
+                            [c[0][0], c[1][0], c[2][0]],
+                            [c[0][1], c[1][1], c[2][1]],
+                            [c[0][2], c[1][2], c[2][2]],
+                        ]);
+                    }
                     let pose = SeedPose {
                         translation: seed.translation().to_array(),
                         rotation_xyzw: seed.rotation().to_array(),

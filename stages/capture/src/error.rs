@@ -100,6 +100,15 @@ pub enum CaptureError {
         /// What is wrong.
         reason: String,
     },
+    /// A real size (an object radius, a mesh unit) that is not a positive
+    /// number of metres.
+    #[error("{what} must be a positive number of metres up to 1000, not {metres}")]
+    InvalidSize {
+        /// Which size.
+        what: &'static str,
+        /// The value given.
+        metres: f64,
+    },
     /// An unknown built-in object name.
     #[error("unknown object '{name}'; valid built-in objects: {valid}")]
     UnknownObject {

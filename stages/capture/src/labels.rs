@@ -2,8 +2,8 @@
 //! image, written by `acch render` and also used to label real images.
 //!
 //! ```text
-//! file,theta_deg,phi_deg,distance,bbox_x,bbox_y,bbox_w,bbox_h,mask
-//! view_0000.png,45,0,5,270,180,101,121,view_0000_mask.png
+//! file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask
+//! view_0000.png,45,0,1.03,270,180,101,121,view_0000_mask.png
 //! ```
 //!
 //! Paths are relative to the directory of the labels file. The bounding box
@@ -18,7 +18,7 @@ use crate::camera::wrap_deg;
 use crate::{BBox, CaptureError, GroundTruth};
 
 /// The header line written by [`write_labels`].
-pub const HEADER: &str = "file,theta_deg,phi_deg,distance,bbox_x,bbox_y,bbox_w,bbox_h,mask";
+pub const HEADER: &str = "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask";
 
 /// One labelled image.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,8 +29,8 @@ pub struct LabelRow {
     pub theta_deg: f64,
     /// Camera azimuth in degrees, [0, 360).
     pub phi_deg: f64,
-    /// Camera distance in object bounding radii.
-    pub distance: f64,
+    /// Camera distance to the object centre, metres.
+    pub distance_m: f64,
     /// Bounding box of the object in the image, if known.
     pub bbox: Option<BBox>,
     /// Object mask image path (relative, 255 = object), if known.
@@ -38,13 +38,20 @@ pub struct LabelRow {
 }
 
 impl LabelRow {
-    /// A row for a rendered image from its ground truth.
-    pub fn from_truth(file: impl Into<String>, mask: Option<String>, truth: &GroundTruth) -> Self {
+    /// A row for a rendered image from its ground truth, of an object
+    /// whose real bounding radius is `radius_m` (the renderer's distances
+    /// are in bounding radii).
+    pub fn from_truth(
+        file: impl Into<String>,
+        mask: Option<String>,
+        truth: &GroundTruth,
+        radius_m: f64,
+    ) -> Self {
         LabelRow {
             file: file.into(),
             theta_deg: truth.theta_deg,
             phi_deg: truth.phi_deg,
-            distance: truth.distance,
+            distance_m: truth.distance * radius_m,
             bbox: truth.bbox,
             mask,
         }
@@ -73,7 +80,7 @@ pub fn write_labels(path: impl AsRef<Path>, rows: &[LabelRow]) -> Result<(), Cap
             quote(&r.file),
             r.theta_deg,
             r.phi_deg,
-            r.distance
+            r.distance_m
         );
         match r.bbox {
             Some(b) => {
@@ -166,6 +173,16 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
     };
     let names = split_csv(header).map_err(|e| err(hline, e))?;
     let col = |name: &str| names.iter().position(|n| n == name);
+    if col("distance").is_some() && col("distance_m").is_none() {
+        // The column was in object bounding radii before distances became
+        // metric: reading it as metres would be silently wrong.
+        return Err(err(
+            hline,
+            "the column 'distance' (object bounding radii) is now 'distance_m', in metres: \
+             multiply by the object's bounding radius in metres and rename it"
+                .to_string(),
+        ));
+    }
     let need = |name: &str| {
         col(name).ok_or_else(|| {
             err(
@@ -178,7 +195,7 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
         need("file")?,
         need("theta_deg")?,
         need("phi_deg")?,
-        need("distance")?,
+        need("distance_m")?,
     );
     let c_bbox = [col("bbox_x"), col("bbox_y"), col("bbox_w"), col("bbox_h")];
     let c_mask = col("mask");
@@ -216,11 +233,11 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
         if !phi_deg.is_finite() {
             return Err(err(ln, format!("phi_deg {phi_deg} is not finite")));
         }
-        let distance = num(c_dist)?;
-        if !(distance.is_finite() && distance > 0.0) {
+        let distance_m = num(c_dist)?;
+        if !(distance_m.is_finite() && distance_m > 0.0) {
             return Err(err(
                 ln,
-                format!("distance {distance} must be finite and > 0"),
+                format!("distance_m {distance_m} must be a positive number of metres"),
             ));
         }
         let bvals: Vec<Option<&str>> = c_bbox
@@ -259,7 +276,7 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
             file,
             theta_deg,
             phi_deg: wrap_deg(phi_deg),
-            distance,
+            distance_m,
             bbox,
             mask,
         });

@@ -29,7 +29,9 @@ pub(crate) struct Vertex {
 /// A textured triangle mesh ready to render. Target objects are normalised:
 /// the centre of their axis-aligned bounding box is the origin, the farthest
 /// vertex lies at distance 1 (the bounding sphere has radius 1) and z is up,
-/// so the object stands on the table plane `z = table_z()`. Textures are
+/// so the object stands on the table plane `z = table_z()`. The renderer
+/// works in these normalised units; [`Object::radius_m`] is the object's
+/// real bounding radius, which turns them into metres. Textures are
 /// precomputed once (with mip maps), so an `Object` is cheap to render many
 /// times; share it between renderers with an `Arc`.
 #[derive(Debug, Clone)]
@@ -40,6 +42,8 @@ pub struct Object {
     pub(crate) tri_tex: Vec<u32>,
     pub(crate) textures: Vec<Texture>,
     table_z: f64,
+    /// The real bounding radius, metres (one normalised unit).
+    radius_m: f64,
 }
 
 /// Which axis of a mesh file points up (becomes the world z axis).
@@ -133,7 +137,10 @@ impl Object {
     }
 
     /// Loads a textured OBJ mesh, rotating `up` onto the world z axis and
-    /// normalising it to bounding radius 1. Every mesh in the file needs
+    /// normalising it to bounding radius 1. An OBJ file states no unit: its
+    /// coordinates are taken as metres (as glTF's are), so the real radius
+    /// is the file's bounding radius; [`Object::with_mesh_unit_m`] or
+    /// [`Object::with_radius_m`] say otherwise. Every mesh in the file needs
     /// texture coordinates and a material with `map_Kd`; missing normals are
     /// computed (smoothed across edges sharper than 60 degrees only).
     pub fn load_obj_with_up(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
@@ -167,6 +174,31 @@ impl Object {
             .flatten()
             .map(|v| v.p.as_dvec3().length())
             .fold(0.0, f64::max)
+    }
+
+    /// The real bounding radius, metres: what one normalised unit of the
+    /// renderer's scene measures.
+    pub fn radius_m(&self) -> f64 {
+        self.radius_m
+    }
+
+    /// The object with a real bounding radius of `radius_m` metres (a
+    /// measured object, or a mesh whose unit is unknown).
+    pub fn with_radius_m(mut self, radius_m: f64) -> Result<Object, CaptureError> {
+        check_size("the object radius", radius_m)?;
+        self.radius_m = radius_m;
+        Ok(self)
+    }
+
+    /// The object of a mesh whose coordinates are in units of `unit_m`
+    /// metres (0.001 for millimetres): scales the real radius the loader
+    /// took as metres.
+    pub fn with_mesh_unit_m(mut self, unit_m: f64) -> Result<Object, CaptureError> {
+        check_size("the mesh unit", unit_m)?;
+        let radius_m = self.radius_m * unit_m;
+        check_size("the object radius", radius_m)?;
+        self.radius_m = radius_m;
+        Ok(self)
     }
 
     /// The lowest z of the object: the height of the table it stands on.
@@ -351,7 +383,8 @@ impl MeshBuilder {
         }
     }
 
-    /// Finishes the mesh as is (distractors keep their own units).
+    /// Finishes the mesh as is (distractors keep their own units; their
+    /// real size is never asked for, so one unit counts as 1 m).
     pub fn finish_raw(self, name: &str) -> Object {
         let table_z = self
             .tris
@@ -365,12 +398,13 @@ impl MeshBuilder {
             tri_tex: self.tri_tex,
             textures: self.textures,
             table_z,
+            radius_m: 1.0,
         }
     }
 
     /// Finishes the mesh normalised: bounding-box centre at the origin,
-    /// bounding radius 1.
-    pub fn finish_normalised(mut self, name: &str) -> Object {
+    /// bounding radius 1; one unit of the mesh as built is `unit_m` metres.
+    pub fn finish_normalised(mut self, name: &str, unit_m: f64) -> Object {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for v in self.tris.iter().flatten() {
@@ -388,7 +422,13 @@ impl MeshBuilder {
         for v in self.tris.iter_mut().flatten() {
             v.p = ((v.p.as_dvec3() - centre) * scale).as_vec3();
         }
-        self.finish_raw(name)
+        let mut object = self.finish_raw(name);
+        object.radius_m = if radius > 0.0 {
+            radius * unit_m
+        } else {
+            unit_m
+        };
+        object
     }
 }
 
@@ -409,6 +449,22 @@ pub(crate) const PINK: [u8; 3] = [250, 140, 170];
 pub(crate) const TEAL: [u8; 3] = [0, 130, 130];
 const CARDBOARD: [u8; 3] = [165, 120, 70];
 const SILVER: [u8; 3] = [185, 185, 190];
+
+/// Metres per unit of the built-in geometry: the box is 24 x 15 x 30 cm
+/// (a cereal box), the can 8.4 cm across and 12 cm tall (a drink can), the
+/// blocks 10 cm long (a toy).
+const FRUITBOX_UNIT_M: f64 = 0.30;
+const CAN_UNIT_M: f64 = 0.12;
+const TRICOLOR_UNIT_M: f64 = 0.10;
+
+/// A real size must be a positive, finite number of metres (at most 1 km).
+fn check_size(what: &'static str, metres: f64) -> Result<(), CaptureError> {
+    if metres.is_finite() && metres > 0.0 && metres <= 1000.0 {
+        Ok(())
+    } else {
+        Err(CaptureError::InvalidSize { what, metres })
+    }
+}
 
 /// Texels per unit of the un-normalised builtin geometry.
 const TEXELS_PER_UNIT: f32 = 320.0;
@@ -503,7 +559,7 @@ fn fruitbox() -> Object {
         Vec3::new(sx / 2.0, sy / 2.0, sz),
         t,
     );
-    b.finish_normalised("fruitbox")
+    b.finish_normalised("fruitbox", FRUITBOX_UNIT_M)
 }
 
 /// A drink can, radius 0.35 and height 1.0 before normalisation, whose label
@@ -557,7 +613,7 @@ fn can() -> Object {
     let top = b.texture(lid.into_texture(false));
     let bottom = b.texture(Texture::solid(SILVER));
     b.cylinder(Vec2::ZERO, 0.0, h, r, 96, side, top, bottom);
-    b.finish_normalised("can")
+    b.finish_normalised("can", CAN_UNIT_M)
 }
 
 /// Three untextured blocks: a blue base slab, a red tower on one end and a
@@ -582,7 +638,7 @@ fn tricolor() -> Object {
         Vec3::new(0.42, 0.35, 0.6),
         [green; 6],
     );
-    b.finish_normalised("tricolor")
+    b.finish_normalised("tricolor", TRICOLOR_UNIT_M)
 }
 
 /// Resolves a `map_Kd` value relative to the MTL file's directory. Options
@@ -770,7 +826,8 @@ fn load_obj_impl(path: &Path, up: UpAxis) -> Result<Object, CaptureError> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "mesh".to_string());
-    Ok(b.finish_normalised(&name))
+    // OBJ states no unit: metres until the caller says otherwise.
+    Ok(b.finish_normalised(&name, 1.0))
 }
 
 /// Vertex normals for a mesh without them: the area-weighted mean of the

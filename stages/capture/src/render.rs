@@ -83,6 +83,15 @@ pub struct GroundTruth {
     pub bbox: Option<BBox>,
 }
 
+impl GroundTruth {
+    /// Where the object centre (the world origin) projects, pixels; `None`
+    /// when it is behind the camera.
+    pub fn object_centre_px(&self) -> Option<glam::DVec2> {
+        let centre = self.world_from_camera.inverse().translation;
+        self.intrinsics.project(centre)
+    }
+}
+
 /// A rendered frame: image, target mask and ground truth.
 #[derive(Debug, Clone, Default)]
 pub struct Rendered {

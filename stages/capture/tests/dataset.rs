@@ -69,7 +69,7 @@ fn labels_round_trip() {
             file: "view_0000.png".into(),
             theta_deg: 45.0,
             phi_deg: 0.0,
-            distance: 5.0,
+            distance_m: 1.25,
             bbox: Some(BBox {
                 x: 270,
                 y: 180,
@@ -82,7 +82,7 @@ fn labels_round_trip() {
             file: "real, odd \"name\".png".into(),
             theta_deg: 67.123_456_789_012_34 + 1e-13,
             phi_deg: 359.99999999999994,
-            distance: 0.1 + 0.2,
+            distance_m: 0.1 + 0.2,
             bbox: None,
             mask: None,
         },
@@ -91,7 +91,7 @@ fn labels_round_trip() {
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.starts_with(&format!("{HEADER}\n")));
     assert!(
-        text.contains("view_0000.png,45,0,5,270,180,101,121,view_0000_mask.png\n"),
+        text.contains("view_0000.png,45,0,1.25,270,180,101,121,view_0000_mask.png\n"),
         "{text}"
     );
     assert_eq!(read_labels(&path).unwrap(), rows);
@@ -103,7 +103,7 @@ fn hand_written_labels_with_fewer_columns_read() {
     let path = dir.path().join("real.csv");
     std::fs::write(
         &path,
-        "phi_deg,theta_deg,file,distance\n-10,60,img1.png,4.5\n\n370,90,img2.png,4.5\n",
+        "phi_deg,theta_deg,file,distance_m\n-10,60,img1.png,0.8\n\n370,90,img2.png,0.8\n",
     )
     .unwrap();
     let rows = read_labels(&path).unwrap();
@@ -121,7 +121,12 @@ fn bad_labels_name_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.csv");
     let cases = [
-        ("file,theta_deg,phi_deg\na.png,45,0\n", 1, "distance"),
+        ("file,theta_deg,phi_deg\na.png,45,0\n", 1, "distance_m"),
+        (
+            "file,theta_deg,phi_deg,distance\na.png,45,0,5\n",
+            1,
+            "now 'distance_m', in metres",
+        ),
         (
             &format!("{HEADER}\na.png,45,0,5,,,,,\nb.png,95,0,5,,,,,\n"),
             3,
@@ -134,7 +139,7 @@ fn bad_labels_name_file_and_line() {
             "all set or all empty",
         ),
         (&format!("{HEADER}\na.png,45,0,5,1,2\n"), 2, "fields"),
-        (&format!("{HEADER}\na.png,45,0,-5,,,,,\n"), 2, "distance"),
+        (&format!("{HEADER}\na.png,45,0,-5,,,,,\n"), 2, "distance_m"),
         (
             &format!("{HEADER}\n\"a.png,45,0,5,,,,,\n"),
             2,

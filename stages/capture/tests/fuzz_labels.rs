@@ -18,7 +18,7 @@ fn config(cases: u32) -> Config {
     }
 }
 
-const HEADER: &str = "file,theta_deg,phi_deg,distance,bbox_x,bbox_y,bbox_w,bbox_h,mask";
+const HEADER: &str = "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask";
 
 fn check(text: &str) {
     match parse_labels(text, Path::new("dir/labels.csv")) {
@@ -30,7 +30,7 @@ fn check(text: &str) {
                     r.phi_deg.is_finite() && (0.0..360.0).contains(&r.phi_deg),
                     "{r:?}"
                 );
-                assert!(r.distance.is_finite() && r.distance > 0.0, "{r:?}");
+                assert!(r.distance_m.is_finite() && r.distance_m > 0.0, "{r:?}");
                 if let Some(b) = r.bbox {
                     assert!(b.width > 0 && b.height > 0);
                 }

@@ -291,6 +291,7 @@ pub(crate) mod tests {
                     theta_deg: t,
                     phi_deg: k as f32 * 360.0 / per_slice as f32,
                     size_px: 100.0,
+                    centre_offset_px: [0.0; 2],
                 });
             }
         }

@@ -158,6 +158,7 @@ fn bench_matching(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
             theta_deg: (i / 36) as f32 * 15.0,
             phi_deg: (i % 36) as f32 * 10.0,
             size_px: 128.0,
+            centre_offset_px: [0.0; 2],
         };
         db.push_view(view, h);
     }

@@ -8,7 +8,7 @@
 //! version   u32      FORMAT_VERSION
 //! length    u64      payload bytes
 //! crc32     u32      of the payload
-//! payload   object, training distance, palette, parameters, views,
+//! payload   object, training distance (m), palette, parameters, views,
 //!           histograms, sections
 //! ```
 
@@ -18,8 +18,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 8] = b"ACCHDB\r\n";
-/// Version of the file layout this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version of the file layout this build reads and writes. Version 2: the
+/// training distance is in metres (version 1 had object bounding radii).
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER_LEN: usize = 8 + 4 + 8 + 4;
 
 /// One training view.
@@ -32,6 +33,12 @@ pub struct View {
     /// Apparent object size in pixels (square root of the mask area), to
     /// estimate scale from a region of interest.
     pub size_px: f32,
+    /// Where the object centre projects relative to the centre of the
+    /// mask's bounding box, pixels at the training scale: a region's
+    /// centre plus this is the centre's ray (a box seen from above shows
+    /// its top nearer the camera, so its silhouette's centre is not its
+    /// centre's projection). Zero when training did not know the centre.
+    pub centre_offset_px: [f32; 2],
 }
 
 /// Why a database file could not be read or written.
@@ -102,8 +109,10 @@ pub struct ViewDatabase {
     pub palette: Palette,
     /// How the histograms were computed.
     pub params: HistogramParams,
-    /// Camera distance of the training views, in object bounding radii.
-    pub train_distance: f32,
+    /// Camera distance of the training views to the object centre, metres:
+    /// an object seen at distance `d` appears `train_distance_m / d` times
+    /// its trained size, and a seed's translation is in metres.
+    pub train_distance_m: f32,
     views: Vec<View>,
     histograms: Vec<f32>,
     /// Extension sections by name (for example "recognition", "confidence").
@@ -116,13 +125,13 @@ impl ViewDatabase {
         object: &str,
         palette: Palette,
         params: HistogramParams,
-        train_distance: f32,
+        train_distance_m: f32,
     ) -> Self {
         ViewDatabase {
             object: object.to_owned(),
             palette,
             params,
-            train_distance,
+            train_distance_m,
             views: Vec::new(),
             histograms: Vec::new(),
             sections: BTreeMap::new(),
@@ -181,7 +190,7 @@ impl ViewDatabase {
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut p = Vec::with_capacity(self.histograms.len() * 4 + 4096);
         put_str(&mut p, &self.object);
-        put_f32(&mut p, self.train_distance);
+        put_f32(&mut p, self.train_distance_m);
         p.push(self.palette.space().id());
         put_u16(&mut p, self.palette.len() as u16);
         put_f32(&mut p, self.palette.reject_distance());
@@ -212,6 +221,8 @@ impl ViewDatabase {
             put_f32(&mut p, v.theta_deg);
             put_f32(&mut p, v.phi_deg);
             put_f32(&mut p, v.size_px);
+            put_f32(&mut p, v.centre_offset_px[0]);
+            put_f32(&mut p, v.centre_offset_px[1]);
         }
         put_u32(&mut p, q.len() as u32);
         for &h in &self.histograms {
@@ -377,7 +388,7 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
         pos: 0,
     };
     let object = r.string("the object name")?;
-    let train_distance = r.finite("the training distance")?;
+    let train_distance_m = r.finite("the training distance")?;
     let space_id = r.u8("the colour space")?;
     let space = ColourSpace::from_id(space_id)
         .ok_or_else(|| format!("unknown colour space id {space_id}"))?;
@@ -426,9 +437,9 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
         ));
     }
     let n_views = r.u32("the view count")? as usize;
-    // Each view takes 12 bytes: refuse counts the payload cannot hold before
+    // Each view takes 20 bytes: refuse counts the payload cannot hold before
     // allocating for them.
-    if n_views > (payload.len() - r.pos) / 12 {
+    if n_views > (payload.len() - r.pos) / 20 {
         return Err(format!("view count {n_views} exceeds the payload"));
     }
     let mut views = Vec::with_capacity(n_views);
@@ -436,6 +447,10 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
         let theta_deg = r.finite("a view's theta")?;
         let phi_deg = r.finite("a view's phi")?;
         let size_px = r.finite("a view's size")?;
+        let centre_offset_px = [
+            r.finite("a view's centre offset")?,
+            r.finite("a view's centre offset")?,
+        ];
         if !(-1e-3..=90.001).contains(&theta_deg) {
             return Err(format!("view theta {theta_deg} is outside [0, 90]"));
         }
@@ -443,6 +458,7 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
             theta_deg,
             phi_deg,
             size_px,
+            centre_offset_px,
         });
     }
     let hist_len = r.u32("the histogram length")? as usize;
@@ -482,7 +498,7 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
         object,
         palette,
         params,
-        train_distance,
+        train_distance_m,
         views,
         histograms,
         sections,
@@ -512,6 +528,7 @@ mod tests {
                 theta_deg: 45.0,
                 phi_deg: 10.0,
                 size_px: 100.0,
+                centre_offset_px: [0.5, -3.25],
             },
             &vec![1.0 / n as f32; n],
         );
@@ -522,6 +539,7 @@ mod tests {
                 theta_deg: 90.0,
                 phi_deg: 350.0,
                 size_px: 120.0,
+                centre_offset_px: [0.0, 0.0],
             },
             &h,
         );

@@ -275,6 +275,14 @@ impl Rect {
     pub fn area(&self) -> u64 {
         self.width as u64 * self.height as u64
     }
+
+    /// Its centre, pixels (pixel centres at integer coordinates).
+    pub fn centre(&self) -> (f32, f32) {
+        (
+            self.x as f32 + (self.width as f32 - 1.0) / 2.0,
+            self.y as f32 + (self.height as f32 - 1.0) / 2.0,
+        )
+    }
 }
 
 /// Computes histograms, reusing its buffers: after the first frames of a

@@ -42,6 +42,7 @@ fn sample() -> Vec<u8> {
                 theta_deg: t,
                 phi_deg: p,
                 size_px: 100.0,
+                centre_offset_px: [0.0; 2],
             },
             &vec![1.0 / n as f32; n],
         );

@@ -138,10 +138,10 @@ impl PoseEstimator {
         &self.histogram
     }
 
-    /// Scale at which an object at `distance` (bounding radii) looks,
-    /// relative to training.
-    pub fn scale_for_distance(&self, distance: f32) -> f32 {
-        self.db.train_distance / distance
+    /// Scale at which an object at `distance_m` metres looks, relative to
+    /// training.
+    pub fn scale_for_distance(&self, distance_m: f32) -> f32 {
+        self.db.train_distance_m / distance_m
     }
 
     /// Computes the histogram of the masked ROI at `scale` and the response

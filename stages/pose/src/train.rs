@@ -52,6 +52,10 @@ pub struct LabelledView<'a> {
     /// Apparent size relative to the training distance (distance ratio
     /// train / actual); 1 for views rendered at the training distance.
     pub scale: f32,
+    /// Where the object centre projects, pixels, when known (a rendered
+    /// view's ground truth): seeds aim at it rather than at the region's
+    /// centre.
+    pub centre_px: Option<[f32; 2]>,
 }
 
 impl<'a> LabelledView<'a> {
@@ -72,7 +76,14 @@ impl<'a> LabelledView<'a> {
             theta_deg,
             phi_deg,
             scale,
+            centre_px: None,
         }
+    }
+
+    /// The view with the object centre's projection at `centre_px`.
+    pub fn with_centre(mut self, centre_px: [f32; 2]) -> Self {
+        self.centre_px = Some(centre_px);
+        self
     }
 
     /// Checks that view `index`'s buffers match its (non-empty) size;
@@ -139,7 +150,7 @@ pub fn mask_bbox(mask: &[u8], width: u32, height: u32) -> Option<Rect> {
 /// (θ, φ), so the response reads θ-slice by θ-slice.
 pub fn build_database(
     object: &str,
-    train_distance: f32,
+    train_distance_m: f32,
     views: &[LabelledView<'_>],
     config: &TrainConfig,
 ) -> Result<ViewDatabase, TrainError> {
@@ -178,7 +189,7 @@ pub fn build_database(
         ..config.params
     };
     let mut extractor = HistogramExtractor::new(params)?;
-    let mut db = ViewDatabase::new(object, palette, params, train_distance);
+    let mut db = ViewDatabase::new(object, palette, params, train_distance_m);
     let mut order: Vec<usize> = (0..views.len()).collect();
     order.sort_by(|&a, &b| {
         (views[a].theta_deg, views[a].phi_deg.rem_euclid(360.0))
@@ -196,12 +207,17 @@ pub fn build_database(
             .quantise_into(v.rgb, v.width, v.height, &mut index);
         extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
         let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
+        let centre_offset_px = v.centre_px.map_or([0.0; 2], |c| {
+            let (x, y) = roi.centre();
+            [(c[0] - x) / v.scale, (c[1] - y) / v.scale]
+        });
         db.push_view(
             View {
                 theta_deg: v.theta_deg,
                 phi_deg: v.phi_deg.rem_euclid(360.0),
-                // Sizes are kept at the training scale.
+                // Sizes and offsets are kept at the training scale.
                 size_px: area.sqrt() / v.scale,
+                centre_offset_px,
             },
             &hist,
         );

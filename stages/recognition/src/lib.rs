@@ -112,6 +112,7 @@ mod tests {
                 theta_deg: 90.0,
                 phi_deg: 0.0,
                 scale: 1.0,
+                centre_px: None,
             })
             .collect();
         let params = RecognitionParams {
@@ -373,6 +374,7 @@ mod tests {
             theta_deg: 90.0,
             phi_deg: 0.0,
             scale: 1.0,
+            centre_px: None,
         };
         assert!(matches!(
             RecognitionModel::train(&[view], &p, &RecognitionParams::default()),

@@ -10,9 +10,10 @@ pub struct FrameTruth {
     pub theta_deg: f64,
     /// Azimuth, degrees.
     pub phi_deg: f64,
-    /// Camera distance to the object centre, object bounding radii.
-    pub distance: f64,
-    /// camera_from_object, column-major 3x4 (rotation columns, translation).
+    /// Camera distance to the object centre, metres.
+    pub distance_m: f64,
+    /// camera_from_object, column-major 3x4 (rotation columns, translation
+    /// in metres).
     pub camera_from_object: [f64; 12],
 }
 
@@ -62,7 +63,7 @@ pub const FRAME_SCHEMA: &str = r#"{
     "intrinsics": {"type": "array", "items": {"type": "number"}, "minItems": 4, "maxItems": 4,
                    "description": "fx, fy, cx, cy (pixels)"},
     "truth": {"type": ["object", "null"], "properties": {
-      "theta_deg": {"type": "number"}, "phi_deg": {"type": "number"}, "distance": {"type": "number"},
+      "theta_deg": {"type": "number"}, "phi_deg": {"type": "number"}, "distance_m": {"type": "number"},
       "camera_from_object": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
                              "description": "column-major 3x4, OpenCV camera frame"}}},
     "arm_world_from_camera": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,

@@ -22,10 +22,10 @@
 //!
 //! Frames: the camera frame is OpenCV's (x right, y down, z forward); the
 //! pose maps object coordinates to camera coordinates. Translation units are
-//! those of the distance. The covariance is over the tangent vector
-//! `(tx, ty, tz, rx, ry, rz)` of a left perturbation in the camera frame:
-//! `T' = (exp(δt), exp(δr)) ∘ T`, i.e. `t' = t + δt`, `R' = exp([δr]×) R`,
-//! translation first, rotation in radians.
+//! those of the distance (metres in the pipeline). The covariance is over
+//! the tangent vector `(tx, ty, tz, rx, ry, rz)` of a left perturbation in
+//! the camera frame: `T' = (exp(δt), exp(δr)) ∘ T`, i.e. `t' = t + δt`,
+//! `R' = exp([δr]×) R`, translation first, rotation in radians.
 //!
 //! This crate is pure: no I/O, no IPC.
 
@@ -154,7 +154,8 @@ pub struct SeedInput {
     pub theta_deg: f64,
     /// Estimated azimuth, degrees (any finite value).
     pub phi_deg: f64,
-    /// Centre of the region of interest, pixels.
+    /// Where the object centre projects, pixels: the region of interest's
+    /// centre, corrected by the matched view's centre offset.
     pub roi_centre_px: DVec2,
     /// The camera.
     pub intrinsics: Pinhole,

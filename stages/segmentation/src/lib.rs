@@ -596,6 +596,7 @@ mod tests {
                 theta_deg: 90.0,
                 phi_deg: 0.0,
                 scale: 1.0,
+                centre_px: None,
             })
             .collect();
         let params = RecognitionParams {

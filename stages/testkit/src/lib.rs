@@ -44,7 +44,7 @@ pub fn train_on_views(object: &str, renderer: &Renderer, grid: &ViewSpec) -> Tra
         .collect();
     let db = build_database(
         object,
-        DEFAULT_DISTANCE as f32,
+        (DEFAULT_DISTANCE * renderer.config().object.radius_m()) as f32,
         &labelled,
         &TrainConfig::default(),
     )

@@ -22,6 +22,7 @@ pub fn grid() -> (Vec<Slice>, Vec<View>) {
                 theta_deg: t,
                 phi_deg: k as f32 * 10.0,
                 size_px: 100.0,
+                centre_offset_px: [0.0; 2],
             });
         }
     }
