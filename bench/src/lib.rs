@@ -118,6 +118,13 @@ pub struct BenchArgs {
     /// all runs, so a slow spell of the machine weighs on every mode alike.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeat: u32,
+    /// Also measure the GStreamer source (mode `gst`, at the rates above
+    /// 0): the same scene rendered to PNG files first, then played by
+    /// `multifilesrc ! pngdec` at the rate, so capture's cost per frame
+    /// and its hop are measured beside the synthetic camera's. Needs a
+    /// build with `--features gstreamer`.
+    #[arg(long)]
+    pub gst: bool,
 }
 
 /// Percentiles in milliseconds of nanosecond samples.
@@ -204,6 +211,35 @@ fn series(v: &Value) -> Vec<(String, Vec<u64>)> {
         .unwrap_or_default()
 }
 
+/// Renders the frames of the `gst` mode for `w` x `h`: the views of the
+/// synthetic camera's object as PNG files `view_NNNN.png`.
+fn render_frames(args: &BenchArgs, (w, h): (u32, u32), tmp: &Path) -> Result<PathBuf> {
+    let dir = tmp.join(format!("frames-{w}x{h}"));
+    if dir.exists() {
+        return Ok(dir);
+    }
+    eprintln!(
+        "acch bench: rendering {} frames of {w}x{h} for the gst mode",
+        args.frames
+    );
+    let o = Command::new(&args.exe)
+        .args(["render", "--object", "fruitbox", "--background", "A"])
+        .args(["--views", &format!("random:{}", args.frames)])
+        .args(["--width", &w.to_string(), "--height", &h.to_string()])
+        .args(["--seed", &args.seed.to_string(), "--out"])
+        .arg(&dir)
+        .stdout(std::process::Stdio::null())
+        .output()
+        .map_err(io_err(&args.exe))?;
+    if !o.status.success() {
+        return Err(BenchError::Run {
+            what: format!("rendering the gst mode's frames into {}", dir.display()),
+            stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
+        });
+    }
+    Ok(dir)
+}
+
 fn run_once(
     args: &BenchArgs,
     mode: &'static str,
@@ -235,6 +271,15 @@ fn run_once(
         "shm-rt" => {
             let p = args.rt_priority.unwrap_or(1);
             cmd.args(["--transport", "shm", "--rt-priority", &p.to_string()]);
+        }
+        "gst" => {
+            let frames = render_frames(args, (w, h), tmp)?;
+            cmd.args(["--transport", "shm", "--source"]).arg(format!(
+                "gst:multifilesrc location={}/view_%04d.png index=0 \
+                 caps=image/png,framerate={}/1000 ! pngdec",
+                frames.display(),
+                (fps * 1000.0).round()
+            ));
         }
         _ => {
             cmd.args(["--transport", "shm"]);
@@ -413,11 +458,14 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut plotted: Option<(String, Vec<RunResult>)> = None;
     for &res in &args.resolution {
         for &fps in &args.fps {
-            let modes: &[&'static str] = if args.rt_priority.is_some() {
-                &["shm", "in-process", "copy", "shm-rt"]
-            } else {
-                &["shm", "in-process", "copy"]
-            };
+            let mut modes: Vec<&'static str> = vec!["shm", "in-process", "copy"];
+            if args.rt_priority.is_some() {
+                modes.push("shm-rt");
+            }
+            // A file source needs a rate to play at.
+            if args.gst && fps > 0.0 {
+                modes.push("gst");
+            }
             let mut by_mode: Vec<Vec<RunResult>> = modes.iter().map(|_| Vec::new()).collect();
             for _ in 0..args.repeat {
                 for (m, runs) in modes.iter().zip(&mut by_mode) {
@@ -456,7 +504,23 @@ pub fn run(args: BenchArgs) -> Result<()> {
             ] {
                 config[k] = v;
             }
-            if let Some(rt) = f.get(3) {
+            let of_mode = |m: &str| runs.iter().position(|r| r.mode == m).map(|i| &f[i]);
+            if let Some(g) = of_mode("gst") {
+                mode_figures["gst"] = g.clone();
+                // The GStreamer source beside the synthetic camera: what
+                // capture costs a frame (buffer to published) and its hop.
+                config["gst_capture"] = json!({
+                    "capture_ms": {"synthetic": shm["compute"]["capture"], "gst": g["compute"]["capture"]},
+                    "frame_hop_p50_us": {"synthetic": frame_hop(shm, "p50_us"), "gst": frame_hop(g, "p50_us")},
+                    "frame_hop_p99_us": {"synthetic": frame_hop(shm, "p99_us"), "gst": frame_hop(g, "p99_us")},
+                    "e2e_p99_ms": {"synthetic": shm["e2e_p99_ms"], "gst": g["e2e_p99_ms"]},
+                    "capture_cpu_pct": {
+                        "synthetic": capture_cpu(shm),
+                        "gst": capture_cpu(g),
+                    },
+                });
+            }
+            if let Some(rt) = of_mode("shm-rt") {
                 mode_figures["shm-rt"] = rt.clone();
                 let mut realtime = against(rt, inproc, copy);
                 realtime["priority"] = json!(args.rt_priority);
@@ -519,6 +583,14 @@ pub fn run(args: BenchArgs) -> Result<()> {
         args.png.display()
     );
     Ok(())
+}
+
+/// The capture process's CPU share in a mode's figures.
+fn capture_cpu(f: &Value) -> Value {
+    f["processes"]
+        .as_array()
+        .and_then(|p| p.iter().find(|p| p["stage"] == "capture"))
+        .map_or(Value::Null, |p| p["cpu_pct"].clone())
 }
 
 /// `a[k] / b[k]`.

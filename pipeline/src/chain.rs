@@ -184,7 +184,7 @@ pub fn run_source(
             let first = *first_recorded.get_or_insert(t);
             sleep_until(t0 + Duration::from_nanos(t.saturating_sub(first)));
         }
-        let captured = now_ns();
+        let captured = p.captured_ns.unwrap_or_else(now_ns);
         p.header.stamp_captured(captured);
         if let Some(arm) = arm {
             arm.stamp(&mut p.header, captured);

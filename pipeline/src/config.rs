@@ -1,8 +1,9 @@
 //! The pipeline's configuration (`pipeline.toml`): every process of a run
 //! reads the same file, every key is optional.
 
-use crate::source::{SourceSpec, SyntheticCamera};
+use crate::source::{CameraFile, SourceSpec, SyntheticCamera};
 use crate::stages::StageSettings;
+use acch_capture::calibration::Calibration;
 use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory};
 use acch_core::ViewDatabase;
 use acch_ipc::sched::{self, Placement, StageCpus};
@@ -23,9 +24,17 @@ pub struct PipelineConfig {
     pub db: Option<PathBuf>,
     /// Where default databases are cached.
     pub cache_dir: Option<PathBuf>,
-    /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv) or
-    /// `mcap:FILE` (replays a recording of `acch run --record`).
+    /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv),
+    /// `mcap:FILE` (replays a recording of `acch run --record`),
+    /// `gst:PIPELINE` (a GStreamer pipeline as gst-launch-1.0 writes it,
+    /// e.g. `gst:v4l2src device=/dev/video0 ! videoconvert`; cargo feature
+    /// `gstreamer`) or `camera:DEVICE` (shorthand for a V4L2 camera).
     pub source: String,
+    /// The camera's calibration for `folder:` and `gst:` sources: a ROS
+    /// camera_info YAML or an OpenCV FileStorage YAML (intrinsics and
+    /// plumb_bob / rational_polynomial distortion). Unset = the synthetic
+    /// camera's intrinsics at the stream's size.
+    pub camera_info: Option<PathBuf>,
     /// Background of the simulated scene.
     pub background: String,
     /// Elevation band the simulated camera sweeps, degrees `[min, max]`
@@ -130,6 +139,9 @@ pub enum ConfigError {
     /// The simulated scene's object is unknown.
     #[error("object = {0}")]
     Object(#[source] acch_capture::CaptureError),
+    /// The camera's calibration file cannot be used.
+    #[error("camera_info")]
+    CameraInfo(#[source] acch_capture::CaptureError),
     /// The source's frame size could not be read.
     #[error("source = {source_name}")]
     Source {
@@ -150,6 +162,7 @@ impl Default for PipelineConfig {
             db: None,
             cache_dir: None,
             source: "synthetic".into(),
+            camera_info: None,
             background: "A".into(),
             elevation_deg: [lo, hi],
             frames: 300,
@@ -184,6 +197,9 @@ pub enum Pace {
     /// The next frame goes out when the pipeline has finished the ones
     /// before: as fast as it goes, nothing dropped.
     Free,
+    /// The source's own clock: a camera delivers a frame when it has one
+    /// (and drops what the pipeline cannot take).
+    Source,
 }
 
 impl PipelineConfig {
@@ -306,15 +322,31 @@ impl PipelineConfig {
             return Err(bad("replay", &self.replay, "must be recorded or free"));
         }
         let s = self.source.as_str();
-        if !(s == "synthetic" || s.starts_with("folder:") || s.starts_with("mcap:")) {
+        if !(s == "synthetic" || SOURCE_PREFIXES.iter().any(|p| s.starts_with(p))) {
             return Err(bad(
                 "source",
                 &s,
-                "must be synthetic, folder:DIR or mcap:FILE",
+                "must be synthetic, folder:DIR, mcap:FILE, gst:PIPELINE or camera:DEVICE",
             ));
         }
-        if s.strip_prefix("folder:").or(s.strip_prefix("mcap:")) == Some("") {
-            return Err(bad("source", &s, "names no directory or file"));
+        if SOURCE_PREFIXES
+            .iter()
+            .any(|p| s.strip_prefix(p).is_some_and(|r| r.trim().is_empty()))
+        {
+            return Err(bad(
+                "source",
+                &s,
+                "names no directory, file, pipeline or device",
+            ));
+        }
+        if self.gst_pipeline().is_some() && !cfg!(feature = "gstreamer") {
+            return Err(bad(
+                "source",
+                &s,
+                "this build has no GStreamer source: build with `--features gstreamer` \
+                 (needs the Debian packages libgstreamer1.0-dev and \
+                 libgstreamer-plugins-base1.0-dev)",
+            ));
         }
         if self.source == "synthetic" && self.background.parse::<Background>().is_err() {
             return Err(bad(
@@ -361,8 +393,12 @@ impl PipelineConfig {
         self.transport == "copy"
     }
 
-    /// How an `mcap:` replay is paced (`None` for other sources).
+    /// How the source is paced when `fps` does not pace it: an `mcap:`
+    /// replay's `replay`, a camera's own clock; `None` for the others.
     pub fn pace(&self) -> Option<Pace> {
+        if self.gst_pipeline().is_some() {
+            return Some(Pace::Source);
+        }
         self.source.starts_with("mcap:").then(|| {
             if self.replay == "free" {
                 Pace::Free
@@ -370,6 +406,44 @@ impl PipelineConfig {
                 Pace::Recorded
             }
         })
+    }
+
+    /// The GStreamer pipeline of a `gst:` or `camera:` source.
+    pub fn gst_pipeline(&self) -> Option<String> {
+        if let Some(p) = self.source.strip_prefix("gst:") {
+            return Some(p.trim().to_owned());
+        }
+        self.source
+            .strip_prefix("camera:")
+            .map(|device| format!("v4l2src device={} ! videoconvert", device.trim()))
+    }
+
+    /// Fixes the stream's size before the stages start: a camera's is
+    /// known once it runs, so it is started once here (every stage
+    /// process then reads `width` and `height`). Other sources know
+    /// theirs.
+    /// A calibration for another image size than the stream's is refused
+    /// here too, once, naming both sizes.
+    pub fn resolve_stream_size(&mut self) -> Result<(), ConfigError> {
+        let spec = self.source_spec()?;
+        if self.gst_pipeline().is_some() {
+            (self.width, self.height) =
+                spec.probe_size((self.width, self.height))
+                    .map_err(|source| ConfigError::Source {
+                        source_name: self.source.clone(),
+                        source,
+                    })?;
+        }
+        if let Some(c) = self.camera_file()? {
+            let (w, h) = self.frame_size()?;
+            c.calibration
+                .check_size(w, h)
+                .map_err(|why| ConfigError::Source {
+                    source_name: self.source.clone(),
+                    source: crate::source::SourceError::CalibrationSize { path: c.path, why },
+                })?;
+        }
+        Ok(())
     }
 
     /// The configured placement of the processing stages.
@@ -442,7 +516,16 @@ impl PipelineConfig {
     pub fn source_spec(&self) -> Result<SourceSpec, ConfigError> {
         let s = self.source.as_str();
         if let Some(dir) = s.strip_prefix("folder:") {
-            return Ok(SourceSpec::Folder(dir.into()));
+            return Ok(SourceSpec::Folder {
+                dir: dir.into(),
+                calibration: self.camera_file()?,
+            });
+        }
+        if let Some(pipeline) = self.gst_pipeline() {
+            return Ok(SourceSpec::Gst {
+                pipeline,
+                calibration: self.camera_file()?,
+            });
         }
         if let Some(file) = s.strip_prefix("mcap:") {
             return Ok(SourceSpec::Mcap(file.into()));
@@ -468,11 +551,27 @@ impl PipelineConfig {
     /// The size of the stream the source makes (stages size their buffers
     /// and the frame service its shared memory from it).
     pub fn frame_size(&self) -> Result<(u32, u32), ConfigError> {
+        if self.gst_pipeline().is_some() {
+            // Probed once by the launcher (resolve_stream_size).
+            return Ok((self.width, self.height));
+        }
         let spec = self.source_spec()?;
         spec.frame_size().map_err(|source| ConfigError::Source {
             source_name: self.source.clone(),
             source,
         })
+    }
+
+    /// The calibration `camera_info` names, read.
+    pub fn camera_file(&self) -> Result<Option<CameraFile>, ConfigError> {
+        let Some(path) = &self.camera_info else {
+            return Ok(None);
+        };
+        let calibration = Calibration::load(path).map_err(ConfigError::CameraInfo)?;
+        Ok(Some(CameraFile {
+            path: path.clone(),
+            calibration,
+        }))
     }
 
     /// The built-in object of the simulated scene, at its configured size.
@@ -496,6 +595,9 @@ impl PipelineConfig {
         })
     }
 }
+
+/// Prefixes of the sources that name something.
+const SOURCE_PREFIXES: [&str; 4] = ["folder:", "mcap:", "gst:", "camera:"];
 
 /// CPU numbers as `stage_cpus` writes them (`2,3`).
 fn cpu_list(cpus: &[usize]) -> String {

@@ -83,10 +83,13 @@ impl FrameHeader {
     /// Stamps the moment the frame exists (a camera's exposure time
     /// stamp): capture's receive time, the trail's start and the frame's
     /// wall-clock time stamp.
-    pub fn stamp_captured(&mut self, now_ns: u64) {
-        self.envelope.frame.stamp_ns = acch_ipc::wall_ns();
+    pub fn stamp_captured(&mut self, captured_ns: u64) {
+        // The wall clock of that moment (a camera's frame is older than
+        // now by the time it took to arrive).
+        let age = acch_ipc::now_ns().saturating_sub(captured_ns);
+        self.envelope.frame.stamp_ns = acch_ipc::wall_ns().saturating_sub(age);
         let t = &mut self.envelope.trail;
-        t.captured_ns = now_ns;
-        t.stages[0].received_ns = now_ns;
+        t.captured_ns = captured_ns;
+        t.stages[0].received_ns = captured_ns;
     }
 }

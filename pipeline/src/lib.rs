@@ -1,7 +1,8 @@
 //! The acch runtime: the pipeline as a library.
 //!
 //! - **Sources** ([`source`]): the simulated camera, an image folder, an
-//!   MCAP recording. Written once; capture runs them.
+//!   MCAP recording, a GStreamer pipeline (a real camera; feature
+//!   `gstreamer`). Written once; capture runs them.
 //! - **Stages** ([`stages`]): recognition, segmentation, pose, confidence
 //!   and seeding, each a value with its own buffers that reads its
 //!   upstream's typed header and payload view and writes its own
@@ -20,6 +21,8 @@ pub mod chain;
 pub mod config;
 pub mod copy;
 pub mod frame;
+#[cfg(feature = "gstreamer")]
+pub mod gst;
 pub mod json;
 pub mod node;
 pub mod observe;

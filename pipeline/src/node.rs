@@ -144,6 +144,8 @@ pub struct CaptureCounters {
     pub sent: u64,
     /// Source frames skipped for having another size than the stream.
     pub skipped_size: u64,
+    /// What a camera source lost (all zero for the others).
+    pub camera: crate::source::CameraCounters,
 }
 
 /// Writes counters `value` of process `name` where the launcher reads them.
@@ -283,6 +285,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let start = ipc.control_listener(START)?;
     let spec = cfg.source_spec()?;
     let source = Source::open(&spec, (w, h), cfg.first_frame)?;
+    let stop_source = source.stop_flag();
     let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     let pace = cfg.pace();
     // A free-running replay watches the final results to pace itself ...
@@ -364,6 +367,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
             mut header,
             pixels,
             recorded_ns,
+            captured_ns,
             taken_ns,
         }) = frames_rx.recv()
         else {
@@ -374,10 +378,11 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
             let first = *first_recorded.get_or_insert(t);
             sleep_until(t0 + Duration::from_nanos(t.saturating_sub(first)));
         }
-        // The frame exists now (a camera's exposure time stamp); capture's
-        // own span is the publishing (rendering or decoding it ran ahead,
-        // `taken_ns` long, and is not part of the frame's latency).
-        let captured = now_ns();
+        // The frame exists now, or when the camera says it captured it;
+        // capture's own span is the publishing (rendering or decoding it
+        // ran ahead, `taken_ns` long, and is not part of the frame's
+        // latency).
+        let captured = captured_ns.unwrap_or_else(now_ns);
         header.stamp_captured(captured);
         if let Some(arm) = &arm {
             arm.stamp(&mut header, captured);
@@ -401,12 +406,16 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
         let _ = recycle_tx.send(pixels);
         i += 1;
     }
-    // Stops a source still rendering ahead, then reports how it ended.
+    // Stops a source still rendering ahead (or a camera waiting for a
+    // frame), then reports how it ended.
+    if let Some(stop) = &stop_source {
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
     drop(frames_rx);
     let ended = producer.join().map_err(|_| NodeError::SourcePanicked)?;
     // A source that fails (an unreadable image, a corrupt recording) ends
     // the stream; say why.
-    let skipped_size = ended?;
+    let (skipped_size, camera) = ended?;
     let sent = i - cfg.first_frame;
     tracing::info!("capture: {sent} frames sent");
     write_counters(
@@ -417,6 +426,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
             pid: std::process::id(),
             sent,
             skipped_size,
+            camera,
         },
     );
     while ipc.keep_running() {
@@ -427,8 +437,8 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
 
 /// The source thread: makes frames `first ..` in order and hands them over
 /// (blocking while [`READ_AHEAD`] wait). Returns, with the frames it
-/// skipped for their size, when the run's frames are made, the source ends,
-/// or the publisher hangs up.
+/// skipped for their size and what a camera lost, when the run's frames
+/// are made, the source ends, or the publisher hangs up.
 fn produce(
     mut source: Source,
     first: u64,
@@ -436,7 +446,7 @@ fn produce(
     realtime: bool,
     out: &std::sync::mpsc::SyncSender<Produced>,
     recycle: &std::sync::mpsc::Receiver<Pixels>,
-) -> Result<u64, SourceError> {
+) -> Result<(u64, crate::source::CameraCounters), SourceError> {
     if realtime {
         // Rendering is the camera's work, not the real-time path.
         if let Err(e) = acch_ipc::sched::set_normal() {
@@ -457,7 +467,16 @@ fn produce(
     if source.skipped > 0 {
         tracing::warn!("capture: {} frames skipped for their size", source.skipped);
     }
-    Ok(source.skipped)
+    let camera = source.camera_counters();
+    if camera != Default::default() {
+        tracing::warn!(
+            "capture: the camera dropped {} frames, {} were lost in {} failures",
+            camera.dropped,
+            camera.lost,
+            camera.failures
+        );
+    }
+    Ok((source.skipped, camera))
 }
 
 fn sleep_until(due: Instant) {

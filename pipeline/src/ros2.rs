@@ -10,6 +10,7 @@ use crate::frame::FrameHeader;
 use crate::observe::{Observe, ObserveError};
 use crate::stages::Seeded;
 use crate::wire::{ArmPose, Hop, Intrinsics, Maybe};
+use acch_capture::calibration::DistortionModel;
 use acch_ros2::msg::{
     CameraInfo, Header, Image, ImageRef, Point, Pose, PoseStamped, PoseWithCovariance,
     PoseWithCovarianceStamped, Quaternion, TFMessage, Time, Transform, TransformStamped, Vector3,
@@ -347,11 +348,23 @@ fn pose_of(t: DVec3, q: DQuat) -> Pose {
     }
 }
 
-/// A pinhole camera without distortion, as sensor_msgs/CameraInfo states
-/// one: K, the identity R, and P = [K | 0].
+/// The camera as sensor_msgs/CameraInfo states one: K, its distortion
+/// (plumb_bob or rational_polynomial; zeros for none), the identity R
+/// and P = [K | 0] (the images are not rectified).
 fn fill_camera_info(info: &mut CameraInfo, k: &Intrinsics, (width, height): (u32, u32)) {
     info.width = width;
     info.height = height;
+    let lens = k.lens();
+    let (model, n) = match lens.model {
+        DistortionModel::RationalPolynomial => ("rational_polynomial", 8),
+        _ => ("plumb_bob", 5),
+    };
+    // Reassigned only when they change: this runs for every frame.
+    if info.distortion_model != model {
+        info.distortion_model = model.into();
+    }
+    info.d.resize(n, 0.0);
+    info.d.copy_from_slice(&lens.coefficients[..n]);
     info.k = [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0];
     info.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     info.p = [

@@ -342,6 +342,9 @@ impl LocalObservers {
 /// observers.
 pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary, RunError> {
     cfg.validate()?;
+    let mut cfg = cfg.clone();
+    cfg.resolve_stream_size()?;
+    let cfg = &cfg;
     cfg.pin_stage().map_err(|source| RunError::Sched {
         what: format!("stage_cpus = {}", cfg.stage_cpus),
         source,
@@ -357,7 +360,8 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let mut observers = LocalObservers::open(cfg, opts, &views)?;
     let pacing = match cfg.pace() {
         Some(Pace::Recorded) => Pacing::Recorded,
-        Some(Pace::Free) => Pacing::Free,
+        // A camera blocks until its next frame: as fast as it delivers.
+        Some(Pace::Free | Pace::Source) => Pacing::Free,
         None => Pacing::Rate(cfg.fps),
     };
     let (cpu0, _) = self_usage();
@@ -386,6 +390,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
         "stage": "capture",
         "sent": got.len(),
         "skipped_size": source.skipped,
+        "camera": source.camera_counters(),
     }))
     .chain(
         chain
@@ -443,9 +448,11 @@ pub fn run_processes(
 ) -> Result<RunSummary, RunError> {
     cfg.instance = std::process::id().to_string();
     cfg.first_frame = 0;
+    cfg.validate()?;
+    // A camera's size is learnt once, here; every process reads it.
+    cfg.resolve_stream_size()?;
     // The stages' wake-up files go with the run, however it ends.
     let _wake_files = acch_ipc::wake::RunFiles::new(&cfg.instance);
-    cfg.validate()?;
     // One clear error here rather than one from every stage process.
     let db = cfg.database()?;
     crate::stages::Stages::new(&db, &cfg.settings(&db)?)?;

@@ -1,21 +1,47 @@
 //! Frame sources, written once for both executors: the simulated
-//! eye-in-hand camera, a folder of images, and an MCAP recording of an
-//! earlier run. A source makes frames in order; a frame of another size
+//! eye-in-hand camera, a folder of images, an MCAP recording of an
+//! earlier run, and a GStreamer pipeline (a real camera; cargo feature
+//! `gstreamer`). A source makes frames in order; a frame of another size
 //! than the stream's is skipped and named, never passed on.
 
 use crate::frame::FrameHeader;
 use crate::wire::{ArmPose, Intrinsics, Maybe, Truth};
+use acch_capture::calibration::Calibration;
 use acch_capture::{Background, Object, Rendered, Renderer, SceneConfig, Trajectory, ViewPose};
 use acch_ipc::now_ns;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 /// Errors of a frame source; each names the input it concerns.
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
     /// The source string is none of the known kinds.
-    #[error("unknown source '{0}': use synthetic, folder:DIR or mcap:FILE")]
+    #[error("unknown source '{0}': use synthetic, folder:DIR, mcap:FILE or gst:PIPELINE")]
     Unknown(String),
+    /// A GStreamer pipeline does not parse, start or make frames.
+    #[error("gst:{pipeline}: {why}")]
+    Gst {
+        /// The pipeline as configured (after `gst:`).
+        pipeline: String,
+        /// What GStreamer said.
+        why: String,
+    },
+    /// A `gst:` source on a build without GStreamer.
+    #[error(
+        "gst:{0}: this build has no GStreamer source; build with `--features gstreamer` \
+         (needs the Debian packages libgstreamer1.0-dev and libgstreamer-plugins-base1.0-dev)"
+    )]
+    NoGstreamer(String),
+    /// A calibration is for another image size than the stream's.
+    #[error("{}: {why}", path.display())]
+    CalibrationSize {
+        /// The calibration file.
+        path: PathBuf,
+        /// Both sizes.
+        why: String,
+    },
     /// A folder could not be listed.
     #[error("reading {}", dir.display())]
     Folder {
@@ -128,9 +154,93 @@ pub enum SourceSpec {
     Synthetic(SyntheticCamera),
     /// PNG and JPEG images of a folder, in name order (or in the order of
     /// its labels.csv, which also gives their ground truth), cycled.
-    Folder(PathBuf),
+    Folder {
+        /// The folder.
+        dir: PathBuf,
+        /// The camera that took them (else the synthetic camera's).
+        calibration: Option<CameraFile>,
+    },
     /// The frames of an `acch run --record` recording, in order.
     Mcap(PathBuf),
+    /// A GStreamer pipeline ending in raw video (a camera, a stream, a
+    /// file), as `gst-launch-1.0` writes it.
+    Gst {
+        /// The pipeline (after `gst:`).
+        pipeline: String,
+        /// The camera's calibration (else the synthetic camera's
+        /// intrinsics at the stream's size).
+        calibration: Option<CameraFile>,
+    },
+}
+
+/// A calibration and the file it came from (errors name it).
+#[derive(Clone, Debug)]
+pub struct CameraFile {
+    /// The file.
+    pub path: PathBuf,
+    /// What it says.
+    pub calibration: Calibration,
+}
+
+impl CameraFile {
+    /// The intrinsics of a `size` stream: the calibration's, refused when
+    /// it is for another image size.
+    fn intrinsics(&self, size: (u32, u32)) -> Result<Intrinsics, SourceError> {
+        self.calibration.check_size(size.0, size.1).map_err(|why| {
+            SourceError::CalibrationSize {
+                path: self.path.clone(),
+                why,
+            }
+        })?;
+        Ok(Intrinsics::calibrated(&self.calibration))
+    }
+}
+
+/// The intrinsics of a `size` stream from `calibration`, or the synthetic
+/// camera's.
+fn intrinsics_of(
+    calibration: &Option<CameraFile>,
+    size: (u32, u32),
+) -> Result<Intrinsics, SourceError> {
+    match calibration {
+        Some(c) => c.intrinsics(size),
+        None => Ok(Intrinsics::from(&sized_intrinsics(size.0, size.1))),
+    }
+}
+
+/// The intrinsics a recorded frame was seen with, its lens included (a
+/// model this build does not know reads as none, with a warning).
+fn recorded_intrinsics(info: &acch_record::FrameInfo) -> Intrinsics {
+    let k = Intrinsics::from_array(info.intrinsics);
+    let Some((model, coefficients)) = &info.distortion else {
+        return k;
+    };
+    match model.parse() {
+        Ok(model) => k.with_lens(acch_capture::calibration::Distortion {
+            model,
+            coefficients: *coefficients,
+        }),
+        Err(e) => {
+            tracing::warn!(
+                "frame {}: distortion {model}: {e}; read as none",
+                info.sequence
+            );
+            k
+        }
+    }
+}
+
+/// What a camera source lost: frames it dropped (the camera or the
+/// pipeline could not keep up), frames lost while it was reopened, and
+/// how often it failed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CameraCounters {
+    /// Frames missing from the stream (gaps in the buffers' time stamps).
+    pub dropped: u64,
+    /// Frames lost while a failed pipeline was reopened.
+    pub lost: u64,
+    /// Times the pipeline failed mid-stream and was reopened.
+    pub failures: u64,
 }
 
 impl SourceSpec {
@@ -139,7 +249,7 @@ impl SourceSpec {
     pub fn frame_size(&self) -> Result<(u32, u32), SourceError> {
         match self {
             SourceSpec::Synthetic(c) => Ok((c.width, c.height)),
-            SourceSpec::Folder(dir) => {
+            SourceSpec::Folder { dir, .. } => {
                 let first = list_images(dir)?;
                 let p = first
                     .first()
@@ -150,6 +260,40 @@ impl SourceSpec {
                 })
             }
             SourceSpec::Mcap(path) => Ok(acch_record::first_frame_size(path)?),
+            SourceSpec::Gst { pipeline, .. } => Err(SourceError::Gst {
+                pipeline: pipeline.clone(),
+                why: "a stream's size is known once it runs: probe it".into(),
+            }),
+        }
+    }
+
+    /// Starts a GStreamer source to learn its size: `wanted` when the
+    /// stream offers it, else the stream's own (said in a warning). Other
+    /// sources have their [`Self::frame_size`].
+    pub fn probe_size(&self, wanted: (u32, u32)) -> Result<(u32, u32), SourceError> {
+        let SourceSpec::Gst { pipeline, .. } = self else {
+            return self.frame_size();
+        };
+        #[cfg(feature = "gstreamer")]
+        {
+            let got = crate::gst::GstSource::probe(pipeline, wanted)?;
+            if got != wanted {
+                tracing::warn!(
+                    "capture: gst:{pipeline} gives {}x{} frames, not the configured {}x{}: \
+                     using its size (to ask the camera for another mode, put \
+                     video/x-raw,width=W,height=H in the pipeline)",
+                    got.0,
+                    got.1,
+                    wanted.0,
+                    wanted.1
+                );
+            }
+            Ok(got)
+        }
+        #[cfg(not(feature = "gstreamer"))]
+        {
+            let _ = wanted;
+            Err(SourceError::NoGstreamer(pipeline.clone()))
         }
     }
 
@@ -161,8 +305,9 @@ impl SourceSpec {
                 c.object.name(),
                 c.background
             ),
-            SourceSpec::Folder(d) => format!("folder {}", d.display()),
+            SourceSpec::Folder { dir, .. } => format!("folder {}", dir.display()),
             SourceSpec::Mcap(p) => format!("recording {}", p.display()),
+            SourceSpec::Gst { pipeline, .. } => format!("gst:{pipeline}"),
         }
     }
 }
@@ -192,6 +337,9 @@ pub enum Pixels {
     Owned(Vec<u8>),
     /// A recorded frame.
     Replay(Box<acch_record::ReplayFrame>),
+    /// A GStreamer buffer, mapped (GStreamer's until recycled).
+    #[cfg(feature = "gstreamer")]
+    Gst(Box<crate::gst::GstPixels>),
 }
 
 impl Pixels {
@@ -201,6 +349,8 @@ impl Pixels {
             Pixels::Rendered(f) => f.image.as_raw(),
             Pixels::Owned(p) => p,
             Pixels::Replay(f) => f.pixels(),
+            #[cfg(feature = "gstreamer")]
+            Pixels::Gst(f) => f.bytes(),
         }
     }
 }
@@ -213,6 +363,9 @@ pub struct Produced {
     pub pixels: Pixels,
     /// A recording's own capture time of the frame (its pace), ns.
     pub recorded_ns: Option<u64>,
+    /// When a camera captured the frame, CLOCK_MONOTONIC ns (else it is
+    /// stamped when published).
+    pub captured_ns: Option<u64>,
     /// How long the source took to make it, ns.
     pub taken_ns: u64,
 }
@@ -236,6 +389,11 @@ enum Kind {
     Mcap {
         path: PathBuf,
         frames: Box<acch_record::ReplayReader>,
+    },
+    #[cfg(feature = "gstreamer")]
+    Gst {
+        camera: Box<crate::gst::GstSource>,
+        intrinsics: Intrinsics,
     },
 }
 
@@ -288,7 +446,7 @@ impl Source {
                     radius_m,
                 }
             }
-            SourceSpec::Folder(dir) => {
+            SourceSpec::Folder { dir, calibration } => {
                 let labels = dir.join("labels.csv");
                 let files: Vec<_> = if labels.exists() {
                     acch_capture::labels::read_labels(&labels)?
@@ -304,7 +462,7 @@ impl Source {
                 Kind::Folder {
                     dir: dir.clone(),
                     files,
-                    intrinsics: Intrinsics::from(&sized_intrinsics(size.0, size.1)),
+                    intrinsics: intrinsics_of(calibration, size)?,
                 }
             }
             SourceSpec::Mcap(path) => {
@@ -321,6 +479,21 @@ impl Source {
                     path: path.clone(),
                 }
             }
+            #[cfg(feature = "gstreamer")]
+            SourceSpec::Gst {
+                pipeline,
+                calibration,
+            } => {
+                let intrinsics = intrinsics_of(calibration, size)?;
+                Kind::Gst {
+                    camera: Box::new(crate::gst::GstSource::open(pipeline, size)?),
+                    intrinsics,
+                }
+            }
+            #[cfg(not(feature = "gstreamer"))]
+            SourceSpec::Gst { pipeline, .. } => {
+                return Err(SourceError::NoGstreamer(pipeline.clone()));
+            }
         };
         Ok(Source {
             kind,
@@ -330,6 +503,25 @@ impl Source {
             skipped: 0,
             spare: Vec::new(),
         })
+    }
+
+    /// What a camera source lost so far (zero for other sources).
+    pub fn camera_counters(&self) -> CameraCounters {
+        match &self.kind {
+            #[cfg(feature = "gstreamer")]
+            Kind::Gst { camera, .. } => camera.counters,
+            _ => CameraCounters::default(),
+        }
+    }
+
+    /// A flag that, set from another thread, ends a camera's wait for its
+    /// next frame (`None` for sources that never wait).
+    pub fn stop_flag(&self) -> Option<Arc<AtomicBool>> {
+        match &self.kind {
+            #[cfg(feature = "gstreamer")]
+            Kind::Gst { camera, .. } => Some(camera.stop_flag()),
+            _ => None,
+        }
     }
 
     /// Hands a synthetic frame's buffer back, so the next frame reuses it
@@ -388,6 +580,8 @@ impl Source {
             Kind::Synthetic { .. } => format!("synthetic frame {seq}"),
             Kind::Folder { files, .. } => files[self.position(files.len())].0.display().to_string(),
             Kind::Mcap { path, .. } => format!("frame {seq} of {}", path.display()),
+            #[cfg(feature = "gstreamer")]
+            Kind::Gst { .. } => format!("camera frame {seq}"),
         }
     }
 
@@ -426,6 +620,7 @@ impl Source {
                     header,
                     pixels: Pixels::Rendered(buffer),
                     recorded_ns: None,
+                    captured_ns: None,
                     taken_ns: 0,
                 }))
             }
@@ -454,6 +649,7 @@ impl Source {
                     header,
                     pixels: Pixels::Owned(img.into_raw()),
                     recorded_ns: None,
+                    captured_ns: None,
                     taken_ns: 0,
                 }))
             }
@@ -467,7 +663,7 @@ impl Source {
                     info.sequence,
                     info.width,
                     info.height,
-                    Intrinsics::from_array(info.intrinsics),
+                    recorded_intrinsics(info),
                 );
                 if let Some(t) = &info.truth {
                     header.envelope.frame.truth = Maybe::Present(Truth {
@@ -487,6 +683,20 @@ impl Source {
                     header,
                     pixels: Pixels::Replay(Box::new(f)),
                     recorded_ns,
+                    captured_ns: None,
+                    taken_ns: 0,
+                }))
+            }
+            #[cfg(feature = "gstreamer")]
+            Kind::Gst { camera, intrinsics } => {
+                let Some(f) = camera.next_frame()? else {
+                    return Ok(None);
+                };
+                Ok(Some(Produced {
+                    header: FrameHeader::rgb(sequence, f.width, f.height, *intrinsics),
+                    pixels: Pixels::Gst(Box::new(f.pixels)),
+                    recorded_ns: None,
+                    captured_ns: Some(f.captured_ns),
                     taken_ns: 0,
                 }))
             }

@@ -8,6 +8,7 @@
 //! process that publishes it, so a reader only ever sees values the writer
 //! built; the processes of a run are the same binary.
 
+use acch_capture::calibration::{Calibration, Distortion, DistortionModel};
 use acch_ipc::ZeroCopySend;
 
 /// The processes of the pipeline, in data-flow order.
@@ -248,7 +249,7 @@ impl PixelRect {
     }
 }
 
-/// Pinhole intrinsics, pixels.
+/// Pinhole intrinsics, pixels, and the lens distortion the pixels have.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct Intrinsics {
@@ -260,6 +261,11 @@ pub struct Intrinsics {
     pub cx: f64,
     /// Principal point y.
     pub cy: f64,
+    /// Distortion coefficients k1 k2 p1 p2 k3 k4 k5 k6 (OpenCV's order;
+    /// unused ones 0).
+    pub distortion: [f64; 8],
+    /// The distortion model: 0 none, 1 plumb_bob, 2 rational_polynomial.
+    pub distortion_model: u32,
 }
 
 impl Intrinsics {
@@ -268,20 +274,67 @@ impl Intrinsics {
         [self.fx, self.fy, self.cx, self.cy]
     }
 
-    /// From `[fx, fy, cx, cy]`.
+    /// From `[fx, fy, cx, cy]`, no distortion.
     pub fn from_array([fx, fy, cx, cy]: [f64; 4]) -> Self {
-        Intrinsics { fx, fy, cx, cy }
+        Intrinsics {
+            fx,
+            fy,
+            cx,
+            cy,
+            ..Default::default()
+        }
+    }
+
+    /// A calibrated camera's.
+    pub fn calibrated(c: &Calibration) -> Self {
+        Intrinsics::from(&c.intrinsics).with_lens(c.distortion)
+    }
+
+    /// These intrinsics with the lens distortion `lens`.
+    pub fn with_lens(self, lens: Distortion) -> Self {
+        Intrinsics {
+            distortion: lens.coefficients,
+            distortion_model: match lens.model {
+                DistortionModel::None => 0,
+                DistortionModel::PlumbBob => 1,
+                DistortionModel::RationalPolynomial => 2,
+            },
+            ..self
+        }
+    }
+
+    /// The pixel an ideal pinhole camera with these focal lengths and
+    /// principal point sees where this camera's lens put `pixel`: the
+    /// seed's ray goes through it.
+    pub fn undistort(&self, pixel: glam::DVec2) -> glam::DVec2 {
+        let lens = self.lens();
+        if lens.is_none() {
+            return pixel;
+        }
+        let n = lens.undistort_normalised(glam::DVec2::new(
+            (pixel.x - self.cx) / self.fx,
+            (pixel.y - self.cy) / self.fy,
+        ));
+        glam::DVec2::new(n.x * self.fx + self.cx, n.y * self.fy + self.cy)
+    }
+
+    /// The lens distortion (an unknown model code reads as none).
+    pub fn lens(&self) -> Distortion {
+        let model = match self.distortion_model {
+            1 => DistortionModel::PlumbBob,
+            2 => DistortionModel::RationalPolynomial,
+            _ => DistortionModel::None,
+        };
+        Distortion {
+            model,
+            coefficients: self.distortion,
+        }
     }
 }
 
 impl From<&acch_capture::Intrinsics> for Intrinsics {
     fn from(k: &acch_capture::Intrinsics) -> Self {
-        Intrinsics {
-            fx: k.fx,
-            fy: k.fy,
-            cx: k.cx,
-            cy: k.cy,
-        }
+        Intrinsics::from_array([k.fx, k.fy, k.cx, k.cy])
     }
 }
 
@@ -470,5 +523,27 @@ mod tests {
         assert_eq!(t.hop_ns(StageId::Capture), None);
         assert_eq!(t.process_ns(StageId::Recognition), 230);
         assert_eq!(t.end_to_end_ns(), 800);
+    }
+
+    #[test]
+    fn the_seeds_ray_goes_through_the_undistorted_pixel() {
+        // Barrel distortion k1 = -0.2. By hand: the ideal normalised point
+        // (0.4, 0.3) has r^2 = 0.25 and radial factor 1 - 0.2 * 0.25 =
+        // 0.95, so the lens images it at (0.38, 0.285), pixel (510, 382.5)
+        // with f = 500 and centre (320, 240); its ideal pixel is (520, 390).
+        let k = Intrinsics::from_array([500.0, 500.0, 320.0, 240.0])
+            .with_lens(Distortion::plumb_bob([-0.2, 0.0, 0.0, 0.0, 0.0]));
+        let ideal = k.undistort(glam::DVec2::new(510.0, 382.5));
+        assert!(
+            (ideal - glam::DVec2::new(520.0, 390.0)).length() < 1e-6,
+            "{ideal}"
+        );
+        // No distortion: the pixel itself.
+        let pinhole = Intrinsics::from_array([500.0, 500.0, 320.0, 240.0]);
+        let p = glam::DVec2::new(510.0, 382.5);
+        assert_eq!(pinhole.undistort(p), p);
+        // The model survives the trip through the frame header.
+        assert_eq!(k.lens().model, DistortionModel::PlumbBob);
+        assert_eq!(k.lens().coefficients[0], -0.2);
     }
 }

@@ -75,12 +75,7 @@ fn posed() -> Posed {
     });
     let f = &mut p.segmented.recognised.envelope.frame;
     (f.width, f.height) = (640, 480);
-    f.intrinsics = Intrinsics {
-        fx: 500.0,
-        fy: 500.0,
-        cx: 319.5,
-        cy: 239.5,
-    };
+    f.intrinsics = Intrinsics::from_array([500.0, 500.0, 319.5, 239.5]);
     p
 }
 

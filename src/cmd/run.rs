@@ -39,10 +39,18 @@ pub struct RunArgs {
     /// Camera frame rate; 0 runs free (default 30, or the configuration's).
     #[arg(long)]
     pub(crate) fps: Option<f64>,
-    /// Frame source: synthetic, folder:DIR (images and labels.csv) or
-    /// mcap:FILE (replays an `acch run --record` recording).
+    /// Frame source: synthetic, folder:DIR (images and labels.csv),
+    /// mcap:FILE (replays an `acch run --record` recording),
+    /// "gst:PIPELINE" (a GStreamer pipeline as gst-launch-1.0 writes it,
+    /// e.g. "gst:v4l2src device=/dev/video0 ! videoconvert"; the build
+    /// needs `--features gstreamer`) or camera:/dev/videoN (a V4L2 camera).
     #[arg(long, value_name = "SOURCE")]
     pub(crate) source: Option<String>,
+    /// The camera's calibration: a ROS camera_info YAML or an OpenCV
+    /// FileStorage YAML (intrinsics, plumb_bob or rational_polynomial
+    /// distortion); for folder: and gst: sources.
+    #[arg(long, value_name = "FILE.yaml")]
+    pub(crate) camera_info: Option<PathBuf>,
     /// Run every process under SCHED_FIFO at this priority (1..=90): wake-ups
     /// preempt other work, which keeps hop and end-to-end tails short on a
     /// loaded machine. Needs CAP_SYS_NICE or an rtprio limit.
@@ -92,8 +100,9 @@ pub struct RunArgs {
     /// Write every frame's result as a line of JSON (as published on zenoh).
     #[arg(long, value_name = "FILE.jsonl")]
     pub(crate) results: Option<PathBuf>,
-    /// Frame size of the synthetic camera, WIDTHxHEIGHT (default 640x480,
-    /// or the configuration's).
+    /// Frame size of the synthetic camera, or the size a gst: source asks
+    /// the camera for (it adopts the stream's if the camera has no such
+    /// mode), WIDTHxHEIGHT (default 640x480, or the configuration's).
     #[arg(long, value_name = "WxH", value_parser = acch_bench::parse_resolution)]
     pub(crate) resolution: Option<(u32, u32)>,
     /// How frames reach recognition: shm (zero copy) or copy (the
@@ -162,6 +171,9 @@ impl RunArgs {
         }
         if self.db.is_some() {
             cfg.db.clone_from(&self.db);
+        }
+        if self.camera_info.is_some() {
+            cfg.camera_info.clone_from(&self.camera_info);
         }
         if let Some(name) = &self.object.object {
             cfg.object.clone_from(name);

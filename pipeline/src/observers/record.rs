@@ -113,6 +113,9 @@ impl Observe for Recording {
                 camera_from_object: t.camera_from_object,
             }),
             arm_world_from_camera: f.arm.get().map(|a| a.world_from_camera),
+            distortion: Some(f.intrinsics.lens())
+                .filter(|l| !l.is_none())
+                .map(|l| (l.model.name().to_owned(), l.coefficients)),
         };
         self.rec.frame(&info, pixels)?;
         self.s.frames += 1;

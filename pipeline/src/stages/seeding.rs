@@ -349,10 +349,11 @@ impl Seeding {
         Some(SeedInput {
             theta_deg: (pose.theta_deg as f64).clamp(0.0, 90.0),
             phi_deg: pose.phi_deg as f64,
-            roi_centre_px: DVec2::new(
+            // Undistorted: the seed's ray is a pinhole camera's.
+            roi_centre_px: k.undistort(DVec2::new(
                 (cx + offset[0] * pose.scale) as f64,
                 (cy + offset[1] * pose.scale) as f64,
-            ),
+            )),
             intrinsics: Pinhole {
                 fx: k.fx,
                 fy: k.fy,

@@ -157,6 +157,15 @@ pub enum CaptureError {
         /// What is wrong.
         reason: String,
     },
+    /// A camera calibration file (ROS camera_info or OpenCV FileStorage
+    /// YAML) that cannot be read as a calibration.
+    #[error("{}: {reason}", path.display())]
+    Calibration {
+        /// The calibration file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 impl CaptureError {

@@ -32,6 +32,7 @@
 #![warn(missing_docs)]
 
 mod background;
+pub mod calibration;
 mod camera;
 mod effects;
 mod error;
@@ -46,6 +47,7 @@ mod trajectory;
 mod views;
 
 pub use background::{Background, TextureSet};
+pub use calibration::{Calibration, Distortion, DistortionModel};
 pub use camera::{DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance};
 pub use effects::Effects;
 pub use error::CaptureError;

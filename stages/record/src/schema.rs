@@ -37,6 +37,11 @@ pub struct FrameInfo {
     /// the same motion. Absent in recordings made before it was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub arm_world_from_camera: Option<[f64; 12]>,
+    /// The lens distortion of a calibrated camera: its model
+    /// (`plumb_bob`, `rational_polynomial`) and k1 k2 p1 p2 k3 k4 k5 k6.
+    /// Absent for an undistorted camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distortion: Option<(String, [f64; 8])>,
 }
 
 /// `/acch/response`: the pose stage's match value per database view, in
@@ -67,7 +72,11 @@ pub const FRAME_SCHEMA: &str = r#"{
       "camera_from_object": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
                              "description": "column-major 3x4, OpenCV camera frame"}}},
     "arm_world_from_camera": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
-                              "description": "the arm's camera pose, column-major 3x4, OpenCV camera axes"}
+                              "description": "the arm's camera pose, column-major 3x4, OpenCV camera axes"},
+    "distortion": {"type": "array", "prefixItems": [
+                     {"type": "string", "enum": ["plumb_bob", "rational_polynomial"]},
+                     {"type": "array", "items": {"type": "number"}, "minItems": 8, "maxItems": 8}],
+                   "description": "lens distortion model and k1 k2 p1 p2 k3 k4 k5 k6"}
   },
   "required": ["sequence", "capture_ns", "width", "height", "intrinsics"]
 }"#;

@@ -16,6 +16,12 @@ fn info(sequence: u64, w: u32, h: u32) -> FrameInfo {
         }),
         arm_world_from_camera: (sequence % 3 != 1)
             .then(|| std::array::from_fn(|i| (i as f64).cbrt() + 1.0 / 3.0)),
+        distortion: (sequence % 4 == 3).then(|| {
+            (
+                "rational_polynomial".to_owned(),
+                std::array::from_fn(|i| (i as f64 - 3.5) / 97.0),
+            )
+        }),
     }
 }
 
