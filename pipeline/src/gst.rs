@@ -199,10 +199,14 @@ impl Running {
 
     /// The CLOCK_MONOTONIC time of `buffer`'s capture: the pipeline
     /// clock's time of it (base time + running time) moved by the clock's
-    /// offset from CLOCK_MONOTONIC now; the time of the pull when the
-    /// buffer has no time stamp.
+    /// offset from CLOCK_MONOTONIC now. A file's buffer exists when it is
+    /// read (its time stamp is when it is due to be shown), so it is the
+    /// time of the pull, as for a buffer without a time stamp.
     fn captured_ns(&self, buffer: &gst::BufferRef) -> u64 {
         let now = acch_ipc::now_ns();
+        if !self.live {
+            return now;
+        }
         let (Some(pts), Some(base), Some(clock)) = (
             buffer.pts(),
             self.pipeline.base_time(),

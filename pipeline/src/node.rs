@@ -288,8 +288,12 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let stop_source = source.stop_flag();
     let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     let pace = cfg.pace();
-    // A free-running replay watches the final results to pace itself ...
-    let done = (pace == Some(Pace::Free))
+    // A free-running replay, and a stream that waits for its reader (a
+    // file through GStreamer: nothing of it may be dropped), watch the
+    // final results to pace themselves ...
+    let waits_for_results =
+        pace == Some(Pace::Free) || (pace == Some(Pace::Source) && !source.is_live());
+    let done = waits_for_results
         .then(|| ipc.input::<Seeded>(streams::results(StageId::Seeding), Wake::Event))
         .transpose()?;
     // ... and, when a recorder runs, what it has recorded (a replay

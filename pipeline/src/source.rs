@@ -514,6 +514,16 @@ impl Source {
         }
     }
 
+    /// Whether the source makes frames on its own clock, whether or not
+    /// they are taken (a live camera); a file or a renderer waits.
+    pub fn is_live(&self) -> bool {
+        match &self.kind {
+            #[cfg(feature = "gstreamer")]
+            Kind::Gst { camera, .. } => camera.is_live(),
+            _ => false,
+        }
+    }
+
     /// A flag that, set from another thread, ends a camera's wait for its
     /// next frame (`None` for sources that never wait).
     pub fn stop_flag(&self) -> Option<Arc<AtomicBool>> {
