@@ -42,7 +42,7 @@ fn renders_a_small_grid_with_labels_truth_and_contact_sheet() {
     let lines: Vec<&str> = labels.lines().collect();
     assert_eq!(
         lines[0],
-        "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask"
+        "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask,roll_deg"
     );
     assert_eq!(lines.len(), 1 + 8);
     let expected = [
@@ -57,7 +57,7 @@ fn renders_a_small_grid_with_labels_truth_and_contact_sheet() {
     ];
     for (i, (line, (theta, phi))) in lines[1..].iter().zip(expected).enumerate() {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 9, "{line}");
+        assert_eq!(f.len(), 10, "{line}");
         assert_eq!(f[0], format!("view_{i:04}.png"));
         assert_eq!(f[1].parse::<f64>().unwrap(), theta as f64);
         assert_eq!(f[2].parse::<f64>().unwrap(), phi as f64);

@@ -156,6 +156,7 @@ pub fn chain(db: &ViewDatabase) -> Result<Chain, EvalError> {
             height: k.height,
             distance_m: Some(db.train_distance_m as f64),
             unrated: false,
+            roll_search_deg: 0.0,
         },
     )?)
 }

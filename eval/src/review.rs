@@ -241,6 +241,7 @@ pub fn run_episode(
             theta_deg: theta,
             phi_deg: (view.phi_deg + dphi).rem_euclid(360.0),
             distance: view.distance,
+            roll_deg: 0.0,
         };
     }
     Episode::GaveUp

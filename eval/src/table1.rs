@@ -31,6 +31,10 @@ pub struct Table1Options {
     pub seed: u64,
     /// Also evaluate the variants.
     pub compare: bool,
+    /// The test views' camera roll, uniform in ±this, degrees (0: none).
+    pub roll_deg: f64,
+    /// The largest roll the pose stage searches, degrees (0: none).
+    pub roll_search_deg: f64,
 }
 
 /// Accuracy of one configuration over a test set.
@@ -48,6 +52,13 @@ pub struct Metrics {
     pub failure_rate: f64,
     /// Mean time of one estimate (quantise, histogram, response, refine), ms.
     pub ms_per_estimate: f64,
+    /// Mean |Δroll| over the estimates made, degrees (the roll is 0 when
+    /// not searched).
+    pub mean_roll_err_deg: f64,
+    /// Share of images whose estimated camera rotation (θ, φ and roll
+    /// together) is within 10° of the truth: near θ = 90° a turn in φ and
+    /// a roll are the same rotation, which this counts once.
+    pub rotation_within_10deg: f64,
 }
 
 /// One test image's outcome.
@@ -102,6 +113,32 @@ struct Variant {
     refinement: Refinement,
     /// Scale from the known distance (else from the ROI).
     known_distance: bool,
+    /// The roll the pose stage searches, degrees.
+    roll_search_deg: f64,
+}
+
+/// The views rolled uniformly in ±`max_deg`, drawn from `seed`.
+fn rolled(views: Vec<ViewPose>, max_deg: f64, seed: u64) -> Result<Vec<ViewPose>, EvalError> {
+    if max_deg == 0.0 {
+        return Ok(views);
+    }
+    let mut state = seed ^ 0x9e37_79b9_7f4a_7c15;
+    views
+        .into_iter()
+        .map(|v| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+            Ok(v.with_roll((2.0 * u - 1.0) * max_deg)?)
+        })
+        .collect()
+}
+
+/// |a - b| of two rolls, wrapped, degrees.
+fn roll_error(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(360.0);
+    d.min(360.0 - d)
 }
 
 /// Runs table 1 for `object` with histogram options `base`.
@@ -118,7 +155,7 @@ pub fn table1(
     let renderer = protocol::renderer(object.clone(), plain, TextureSet::Training, o.seed);
     let grid: ViewSpec = PAPER_GRID.parse()?;
     let train_views_list = grid.views(DEFAULT_DISTANCE, 0);
-    let test_views = off_grid_random(&grid, o.n, o.seed);
+    let test_views = rolled(off_grid_random(&grid, o.n, o.seed), o.roll_deg, o.seed)?;
     let train = protocol::render_views(&renderer, &train_views_list, 0, "train views");
     let test = protocol::render_views(&renderer, &test_views, o.seed, "test views");
 
@@ -130,6 +167,7 @@ pub fn table1(
             config,
             refinement: Refinement::Parabolic,
             known_distance: true,
+            roll_search_deg: o.roll_search_deg,
         }
     };
     let mut variants = vec![variant("acch refined", &|_| {})];
@@ -206,17 +244,19 @@ impl Table1Report {
             self.object, self.n, self.train_views, self.floor_phi_deg, self.floor_theta_deg
         );
         println!(
-            "{:<24} {:>5} {:>9} {:>9} {:>9} {:>8}",
-            "variant", "n", "E(phi)", "E(theta)", "failures", "ms"
+            "{:<24} {:>5} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8}",
+            "variant", "n", "E(phi)", "E(theta)", "E(roll)", "failures", "rot<=10", "ms"
         );
         for m in &self.variants {
             println!(
-                "{:<24} {:>5} {:>8.2}° {:>8.2}° {:>8.1}% {:>8.2}",
+                "{:<24} {:>5} {:>8.2}° {:>8.2}° {:>8.2}° {:>8.1}% {:>7.1}% {:>8.2}",
                 m.name,
                 m.n,
                 m.mean_phi_err_deg,
                 m.mean_theta_err_deg,
+                m.mean_roll_err_deg,
                 100.0 * m.failure_rate,
+                100.0 * m.rotation_within_10deg,
                 m.ms_per_estimate
             );
         }
@@ -317,6 +357,7 @@ fn evaluate(
         height: h,
         distance_m: v.known_distance.then_some(db.train_distance_m as f64),
         unrated: true,
+        roll_search_deg: v.roll_search_deg as f32,
     };
     let mut pose = Pose::new(db, &settings)?.with_refinement(v.refinement);
     let mut index = IndexImage::default();
@@ -325,6 +366,8 @@ fn evaluate(
     let mut rows = Vec::with_capacity(tests.len());
     let (mut sum_phi, mut sum_theta, mut failures, mut estimated) =
         (0.0f64, 0.0f64, 0usize, 0usize);
+    let mut sum_roll = 0.0f64;
+    let mut rotation_ok = 0usize;
     let mut seconds = 0.0f64;
     for (i, r) in tests.iter().enumerate() {
         let truth = (r.truth.theta_deg as f32, r.truth.phi_deg as f32);
@@ -353,6 +396,15 @@ fn evaluate(
             Some(e) => {
                 sum_phi += phi_error(e.phi_deg, truth.1) as f64;
                 sum_theta += (e.theta_deg - truth.0).abs() as f64;
+                sum_roll += roll_error(e.roll_deg as f64, r.truth.roll_deg);
+                let rotation = |t: f64, p: f64, roll: f64| {
+                    ViewPose::new(t.clamp(0.0, 90.0), p, 1.0)
+                        .and_then(|v| v.with_roll(roll))
+                        .map(|v| glam::DQuat::from_mat3(&v.camera_from_world().matrix3))
+                };
+                let est = rotation(e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64)?;
+                let tru = rotation(r.truth.theta_deg, r.truth.phi_deg, r.truth.roll_deg)?;
+                rotation_ok += (est.angle_between(tru).to_degrees() <= 10.0) as usize;
                 estimated += 1;
                 failures += fails((e.theta_deg, e.phi_deg), truth) as usize;
             }
@@ -368,6 +420,8 @@ fn evaluate(
             mean_theta_err_deg: sum_theta / estimated.max(1) as f64,
             failure_rate: failures as f64 / n as f64,
             ms_per_estimate: 1e3 * seconds / n as f64,
+            rotation_within_10deg: rotation_ok as f64 / tests.len().max(1) as f64,
+            mean_roll_err_deg: sum_roll / estimated.max(1) as f64,
         },
         rows,
     ))

@@ -152,6 +152,7 @@ pub fn unrated_chain(
         height,
         distance_m: Some(distance_m),
         unrated: true,
+        roll_search_deg: 0.0,
     };
     let mut stages = Stages::new(db, &settings)?;
     stages.confidence = Confidence::unrated(db);

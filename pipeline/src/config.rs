@@ -59,6 +59,13 @@ pub struct PipelineConfig {
     /// built-in object's own size (for example 0.206 for `fruitbox`). The
     /// default database is trained for this size.
     pub object_radius_m: Option<f64>,
+    /// The largest roll of the camera about its optical axis the pose
+    /// stage searches, degrees either way (0 = none: image up is the
+    /// training views' up, as the paper assumes).
+    pub roll_search_deg: f64,
+    /// The simulated camera rolls about its optical axis within ±this,
+    /// degrees (0: upright).
+    pub camera_roll_deg: f64,
     /// Frames queued for each reader of the frame stream.
     pub frame_history: usize,
     /// Width of the synthetic camera's frames, pixels.
@@ -163,6 +170,8 @@ impl Default for PipelineConfig {
             cache_dir: None,
             source: "synthetic".into(),
             camera_info: None,
+            roll_search_deg: 0.0,
+            camera_roll_deg: 0.0,
             background: "A".into(),
             elevation_deg: [lo, hi],
             frames: 300,
@@ -298,6 +307,20 @@ impl PipelineConfig {
                 "stage_cpus",
                 &self.stage_cpus,
                 "must be auto, none or a comma-separated list of CPU numbers",
+            ));
+        }
+        if !(self.roll_search_deg.is_finite() && (0.0..=180.0).contains(&self.roll_search_deg)) {
+            return Err(bad(
+                "roll_search_deg",
+                &self.roll_search_deg,
+                "must be 0..=180 degrees",
+            ));
+        }
+        if !(self.camera_roll_deg.is_finite() && (0.0..=180.0).contains(&self.camera_roll_deg)) {
+            return Err(bad(
+                "camera_roll_deg",
+                &self.camera_roll_deg,
+                "must be 0..=180 degrees",
             ));
         }
         if !matches!(self.transport.as_str(), "shm" | "copy") {
@@ -545,6 +568,7 @@ impl PipelineConfig {
             distance_m,
             fps: self.fps,
             elevation_deg: (lo, hi),
+            roll_deg: self.camera_roll_deg,
         }))
     }
 
@@ -592,6 +616,7 @@ impl PipelineConfig {
             height,
             distance_m: Some(self.distance_m.unwrap_or(db.train_distance_m as f64)),
             unrated: self.unrated,
+            roll_search_deg: self.roll_search_deg as f32,
         })
     }
 }

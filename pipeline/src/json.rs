@@ -61,6 +61,8 @@ pub struct TruthJson {
     pub phi_deg: f64,
     /// Distance to the object centre.
     pub distance: f64,
+    /// The camera's roll about its optical axis, degrees.
+    pub roll_deg: f64,
     /// True camera_from_object translation.
     pub translation: [f64; 3],
     /// Unit of the distance and the translation.
@@ -132,6 +134,9 @@ pub struct ResultJson<'a> {
     pub roi: Option<[u32; 4]>,
     /// θ, φ degrees, when estimated.
     pub estimate_deg: Option<[f32; 2]>,
+    /// The camera's roll about its optical axis, degrees, when estimated
+    /// (0 unless `roll_search_deg` > 0).
+    pub roll_deg: Option<f32>,
     /// The seed, when accepted.
     pub seed: Option<SeedJson<'a>>,
     /// The pose fused over the frames so far, once the filter has one.
@@ -184,6 +189,7 @@ impl<'a> ResultJson<'a> {
         let truth = e.frame.truth.get().map(|t| {
             let (translation, rotation_xyzw) = quaternion(&t.camera_from_object);
             TruthJson {
+                roll_deg: t.roll_deg,
                 theta_deg: t.theta_deg,
                 phi_deg: t.phi_deg,
                 distance: t.distance_m,
@@ -221,6 +227,7 @@ impl<'a> ResultJson<'a> {
             found: m.detection().done().is_some(),
             roi: m.region().done().map(|r| r.to_array()),
             estimate_deg: m.pose().done().map(|p| [p.theta_deg, p.phi_deg]),
+            roll_deg: m.pose().done().map(|p| p.roll_deg),
             seed,
             fused,
             truth,

@@ -105,6 +105,9 @@ pub struct SyntheticCamera {
     pub fps: f64,
     /// Elevation band the trajectory sweeps, degrees.
     pub elevation_deg: (f64, f64),
+    /// The camera rolls about its optical axis within ±this, degrees
+    /// (0: it stays upright).
+    pub roll_deg: f64,
 }
 
 impl SyntheticCamera {
@@ -127,6 +130,7 @@ pub fn metric_truth(t: &acch_capture::GroundTruth, radius_m: f64) -> (Truth, Arm
             theta_deg: t.theta_deg,
             phi_deg: t.phi_deg,
             distance_m: t.distance * radius_m,
+            roll_deg: t.roll_deg,
             camera_from_object: world_from_camera.inverse().to_cols_array(),
         },
         ArmPose {
@@ -435,7 +439,10 @@ impl Source {
                 let fps = if c.fps > 0.0 { c.fps } else { 30.0 };
                 let radius_m = c.object.radius_m();
                 let distance = c.distance_m / radius_m;
-                let trajectory = Trajectory::with_elevation(c.seed, fps, distance, lo, hi)?;
+                let mut trajectory = Trajectory::with_elevation(c.seed, fps, distance, lo, hi)?;
+                if c.roll_deg > 0.0 {
+                    trajectory = trajectory.with_roll(c.roll_deg)?;
+                }
                 let template = Box::new(renderer.render(&trajectory.frame(0).view, 0));
                 Kind::Synthetic {
                     renderer: Box::new(renderer),
@@ -647,11 +654,13 @@ impl Source {
                     .to_rgb8();
                 let mut header = FrameHeader::rgb(sequence, img.width(), img.height(), *intrinsics);
                 if let Some(l) = label {
-                    let view = ViewPose::new(l.theta_deg, l.phi_deg, l.distance_m)?;
+                    let view = ViewPose::new(l.theta_deg, l.phi_deg, l.distance_m)?
+                        .with_roll(l.roll_deg)?;
                     header.envelope.frame.truth = Maybe::Present(Truth {
                         theta_deg: l.theta_deg,
                         phi_deg: l.phi_deg,
                         distance_m: l.distance_m,
+                        roll_deg: view.roll_deg,
                         camera_from_object: view.camera_from_world().to_cols_array(),
                     });
                 }
@@ -680,6 +689,7 @@ impl Source {
                         theta_deg: t.theta_deg,
                         phi_deg: t.phi_deg,
                         distance_m: t.distance_m,
+                        roll_deg: t.roll_deg,
                         camera_from_object: t.camera_from_object,
                     });
                 }

@@ -348,6 +348,8 @@ pub struct Truth {
     pub phi_deg: f64,
     /// Camera distance to the object centre, metres.
     pub distance_m: f64,
+    /// The camera's roll about its optical axis, degrees.
+    pub roll_deg: f64,
     /// `camera_from_object`, column-major 3x4 (rotation columns then
     /// translation in metres), OpenCV camera.
     pub camera_from_object: [f64; 12],

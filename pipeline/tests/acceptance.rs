@@ -52,6 +52,7 @@ fn settings(unrated: bool) -> StageSettings {
         // The training distance: the frames are rendered there.
         distance_m: Some(DEFAULT_DISTANCE * Object::builtin("fruitbox").unwrap().radius_m()),
         unrated,
+        roll_search_deg: 0.0,
     }
 }
 
@@ -64,6 +65,7 @@ fn posed() -> Posed {
             best_value: 0.9,
             scale: 1.0,
             best_view: 3,
+            roll_deg: 0.0,
         }),
         ..Default::default()
     };

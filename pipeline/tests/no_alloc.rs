@@ -171,6 +171,9 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         // Unknown: the pose stage's scale follows each region.
         distance_m: None,
         unrated: false,
+        // The roll search too: its shortlist and turned histogram are
+        // the estimator's own buffers.
+        roll_search_deg: 45.0,
     };
     let mut chain = Chain::build(&db, &settings).unwrap();
     let mut json = JsonWriter::default();

@@ -100,6 +100,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
                 height: h,
                 distance_m: input.distance_m.map(f64::from),
                 unrated: true,
+                roll_search_deg: 0.0,
             };
             let mut chain = Chain::build(&db, &settings)?;
             let k = Intrinsics::from(&sized_intrinsics(w, h));

@@ -67,6 +67,13 @@ pub struct EvalArgs {
     /// vs refined, scale from the ROI, RGB palette.
     #[arg(long)]
     compare: bool,
+    /// table1: roll the test views' camera uniformly in ±DEG about its
+    /// optical axis.
+    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
+    roll_deg: f64,
+    /// table1: the largest roll the pose stage searches, degrees (0: none).
+    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
+    roll_search_deg: f64,
     /// Write the results as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -94,6 +101,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 n: args.n.unwrap_or(190),
                 seed: args.seed,
                 compare: args.compare,
+                roll_deg: args.roll_deg,
+                roll_search_deg: args.roll_search_deg,
             };
             let report = table1::table1(object, &options, &config)?;
             report.print();

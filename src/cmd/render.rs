@@ -10,7 +10,7 @@ use super::common::ObjectArgs;
 use acch_capture::labels::{LabelRow, write_labels};
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Rendered, Renderer,
-    SceneConfig, TextureSet, ViewSpec, check_distance, derive_seed,
+    SceneConfig, TextureSet, ViewPose, ViewSpec, check_distance, derive_seed,
 };
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
@@ -102,6 +102,30 @@ pub struct RenderArgs {
     /// Focal length in pixels (fx = fy); the principal point is the image centre.
     #[arg(long, value_name = "PX", default_value_t = 500.0)]
     focal: f64,
+
+    /// Camera roll about its optical axis: each view gets a roll uniform in
+    /// [-MAX, MAX] degrees (0-180), drawn per view from --seed; a positive
+    /// roll turns the image counter-clockwise. 0 = no roll.
+    #[arg(
+        long,
+        value_name = "MAX",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    roll_deg: f64,
+}
+
+/// Salt of the per-view roll seeds, so they differ from the noise seeds.
+const ROLL_SALT: u64 = 0x726f_6c6c_5f64_6567;
+
+/// The roll of view `index` of a run with `seed`: uniform in
+/// [-max_deg, max_deg], exactly 0 when `max_deg` is 0.
+fn view_roll(seed: u64, index: u64, max_deg: f64) -> f64 {
+    if max_deg == 0.0 {
+        return 0.0;
+    }
+    let u = (derive_seed(seed ^ ROLL_SALT, index) >> 11) as f64 / (1u64 << 53) as f64;
+    max_deg * (2.0 * u - 1.0)
 }
 
 /// Thumbnails in a contact sheet row.
@@ -123,6 +147,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
             bail!("{name} {v} must be a finite number >= 0");
         }
     }
+    if !(args.roll_deg.is_finite() && (0.0..=180.0).contains(&args.roll_deg)) {
+        bail!(
+            "--roll-deg {} must be a finite number of degrees in [0, 180]",
+            args.roll_deg
+        );
+    }
     let intrinsics = Intrinsics {
         width: args.width,
         height: args.height,
@@ -138,7 +168,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output directory {}", args.out.display()))?;
 
-    let views = args.views.views(args.distance, args.seed);
+    let views = args
+        .views
+        .views(args.distance, args.seed)
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| v.with_roll(view_roll(args.seed, i as u64, args.roll_deg)))
+        .collect::<Result<Vec<ViewPose>, _>>()?;
     let config = SceneConfig {
         object,
         background: args.background,
@@ -264,6 +300,7 @@ fn write_truth(
                 "background": args.background.to_string(),
                 "theta_deg": truth.theta_deg,
                 "phi_deg": truth.phi_deg,
+                "roll_deg": truth.roll_deg,
                 // The renderer's unit: distances and world_from_camera are
                 // in object bounding radii of object_radius_m metres.
                 "distance": truth.distance,
@@ -338,4 +375,53 @@ fn write_contact_sheet(path: &Path, thumbs: &[&RgbImage]) -> Result<()> {
         sheet.dimensions(),
         ExtendedColorType::Rgb8,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        render: RenderArgs,
+    }
+
+    fn args(extra: &[&str]) -> RenderArgs {
+        let dir = std::env::temp_dir().join("acch-render-roll-test-never-written");
+        let mut argv = vec!["render", "--object", "fruitbox", "--out"];
+        let dir = dir.to_str().unwrap().to_string();
+        argv.push(&dir);
+        argv.extend_from_slice(extra);
+        Cli::try_parse_from(argv).unwrap().render
+    }
+
+    #[test]
+    fn bad_roll_is_refused_naming_the_option() {
+        for bad in ["200", "-5", "NaN", "inf"] {
+            let e = run(args(&["--roll-deg", bad])).unwrap_err().to_string();
+            assert!(
+                e.contains("--roll-deg") && e.contains("[0, 180]"),
+                "{bad}: {e}"
+            );
+        }
+        assert_eq!(args(&[]).roll_deg, 0.0);
+    }
+
+    #[test]
+    fn view_rolls_are_seeded_per_view_and_bounded() {
+        let rolls: Vec<f64> = (0..2000).map(|i| view_roll(9, i, 30.0)).collect();
+        assert!(rolls.iter().all(|r| (-30.0..=30.0).contains(r)));
+        let (min, max) = rolls
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| {
+                (a.min(r), b.max(r))
+            });
+        assert!(min < -29.0 && max > 29.0, "{min} {max}");
+        assert_eq!(rolls[5], view_roll(9, 5, 30.0));
+        assert_ne!(rolls[5], view_roll(10, 5, 30.0));
+        assert_ne!(rolls[5], rolls[6]);
+        assert!((0..100).all(|i| view_roll(9, i, 0.0) == 0.0));
+    }
 }

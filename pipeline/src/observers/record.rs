@@ -110,6 +110,7 @@ impl Observe for Recording {
                 theta_deg: t.theta_deg,
                 phi_deg: t.phi_deg,
                 distance_m: t.distance_m,
+                roll_deg: t.roll_deg,
                 camera_from_object: t.camera_from_object,
             }),
             arm_world_from_camera: f.arm.get().map(|a| a.world_from_camera),

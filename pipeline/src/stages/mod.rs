@@ -31,6 +31,10 @@ pub struct StageSettings {
     /// reported as unrated and none is accepted. Without it such a
     /// database is refused.
     pub unrated: bool,
+    /// The largest roll of the camera about its optical axis the pose
+    /// stage searches, degrees either way (0: none; the image's up is the
+    /// training views' up).
+    pub roll_search_deg: f32,
 }
 
 impl StageSettings {

@@ -27,6 +27,9 @@ pub struct PoseEstimate {
     pub scale: f32,
     /// Index of the best view in the database.
     pub best_view: u32,
+    /// The camera's roll about its optical axis, degrees (0 when the roll
+    /// is not searched).
+    pub roll_deg: f32,
 }
 
 /// Pose's header. `pose`: `Nothing` when the region held no pair of object
@@ -116,7 +119,7 @@ impl Pose {
         let (w, h) = (settings.width, settings.height);
         Ok(Pose {
             scale: settings.scale(db),
-            estimator: PoseEstimator::new(db.clone())?,
+            estimator: PoseEstimator::new(db.clone())?.with_roll_search(settings.roll_search_deg),
             index: IndexImage::new(w, h, vec![0; w as usize * h as usize]),
             refinement: Refinement::Parabolic,
         })
@@ -181,6 +184,7 @@ impl Stage for Pose {
             best_value: e.best_value,
             scale: e.scale,
             best_view: e.best_view as u32,
+            roll_deg: e.roll_deg,
         }))
     }
 

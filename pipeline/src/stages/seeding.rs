@@ -349,6 +349,7 @@ impl Seeding {
         Some(SeedInput {
             theta_deg: (pose.theta_deg as f64).clamp(0.0, 90.0),
             phi_deg: pose.phi_deg as f64,
+            roll_deg: pose.roll_deg as f64,
             // Undistorted: the seed's ray is a pinhole camera's.
             roi_centre_px: k.undistort(DVec2::new(
                 (cx + offset[0] * pose.scale) as f64,

@@ -95,7 +95,8 @@ impl Intrinsics {
 /// A camera position on the view sphere around the object centre: elevation
 /// `theta_deg` in [0, 90] (90 = straight down), azimuth `phi_deg` in [0, 360)
 /// and `distance` from the object centre in object bounding radii. The camera
-/// looks at the object centre with no roll (see [`ViewPose::world_from_camera`]).
+/// looks at the object centre, rolled by `roll_deg` about its optical axis
+/// (0 = image up is `e_θ`; see [`ViewPose::world_from_camera_rotation`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ViewPose {
     /// Elevation above the table plane in degrees, [0, 90].
@@ -104,6 +105,13 @@ pub struct ViewPose {
     pub phi_deg: f64,
     /// Distance from the object centre in object bounding radii.
     pub distance: f64,
+    /// Roll ρ of the camera about its optical (forward) axis in degrees,
+    /// (-180, 180], 0 = no roll. The rolled axes are
+    /// `right' = cos ρ right + sin ρ down`, `down' = -sin ρ right + cos ρ down`,
+    /// forward unchanged (a rotation by +ρ about forward), so the image
+    /// content turns by ρ counter-clockwise on screen (x right, y down).
+    #[serde(default)]
+    pub roll_deg: f64,
 }
 
 /// Checks that a camera distance is finite and positive.
@@ -122,6 +130,16 @@ pub(crate) fn wrap_deg(phi: f64) -> f64 {
     if w >= 360.0 { 0.0 } else { w }
 }
 
+/// Wraps an angle in degrees into (-180, 180].
+pub(crate) fn wrap_roll_deg(roll: f64) -> f64 {
+    if roll > -180.0 && roll <= 180.0 {
+        return roll;
+    }
+    let w = 180.0 - (180.0 - roll).rem_euclid(360.0);
+    // rem_euclid can round up to exactly 360.
+    if w <= -180.0 { 180.0 } else { w }
+}
+
 impl ViewPose {
     /// Validates and builds a view. `phi_deg` may be any finite angle and is
     /// wrapped into [0, 360); `theta_deg` must lie in [0, 90] and `distance`
@@ -138,6 +156,20 @@ impl ViewPose {
             theta_deg,
             phi_deg: wrap_deg(phi_deg),
             distance,
+            roll_deg: 0.0,
+        })
+    }
+
+    /// The same view rolled by `roll_deg` about the optical axis (replacing
+    /// any roll it had; see [`ViewPose::roll_deg`] for the direction). Any
+    /// finite angle is accepted and wrapped into (-180, 180].
+    pub fn with_roll(self, roll_deg: f64) -> Result<Self, CaptureError> {
+        if !roll_deg.is_finite() {
+            return Err(CaptureError::InvalidRoll { value: roll_deg });
+        }
+        Ok(ViewPose {
+            roll_deg: wrap_roll_deg(roll_deg),
+            ..self
         })
     }
 
@@ -152,7 +184,9 @@ impl ViewPose {
     /// The rotation whose columns are the camera axes (right, down, forward)
     /// in world coordinates. Image "up" is `e_θ`, the direction of increasing
     /// elevation, which stays defined at θ = 90: a top view is then rotated
-    /// by φ about the principal point.
+    /// by φ about the principal point. A non-zero [`ViewPose::roll_deg`] ρ
+    /// then turns right and down about forward:
+    /// `right' = cos ρ right + sin ρ down`, `down' = -sin ρ right + cos ρ down`.
     pub fn world_from_camera_rotation(&self) -> DMat3 {
         let (st, ct) = self.theta_deg.to_radians().sin_cos();
         let (sp, cp) = self.phi_deg.to_radians().sin_cos();
@@ -160,7 +194,11 @@ impl ViewPose {
         let up = DVec3::new(-st * cp, -st * sp, ct);
         let down = -up;
         let right = down.cross(forward);
-        DMat3::from_cols(right, down, forward)
+        if self.roll_deg == 0.0 {
+            return DMat3::from_cols(right, down, forward);
+        }
+        let (sr, cr) = self.roll_deg.to_radians().sin_cos();
+        DMat3::from_cols(cr * right + sr * down, cr * down - sr * right, forward)
     }
 
     /// The camera pose: maps points from the OpenCV camera frame (x right,
@@ -175,5 +213,83 @@ impl ViewPose {
     pub fn camera_from_world(&self) -> DAffine3 {
         let r = self.world_from_camera_rotation().transpose();
         DAffine3::from_mat3_translation(r, -(r * self.camera_position()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roll_turns_the_image_counter_clockwise() {
+        let k = Intrinsics::default();
+        let v = ViewPose::new(60.0, 30.0, DEFAULT_DISTANCE).unwrap();
+        // A world point 0.5 to the camera's right of the object centre.
+        let r0 = v.world_from_camera_rotation();
+        let p = 0.5 * r0.x_axis;
+        let px = |v: &ViewPose| {
+            k.project(v.camera_from_world().transform_point3(p))
+                .unwrap()
+        };
+        let a = px(&v);
+        assert!(a.x > k.cx + 10.0 && (a.y - k.cy).abs() < 1e-9, "{a}");
+        // Rolled by +90: the point right of centre moves up (y decreases),
+        // a counter-clockwise quarter turn on screen.
+        let b = px(&v.with_roll(90.0).unwrap());
+        assert!((b.x - k.cx).abs() < 1e-9, "{b}");
+        assert!((b.y - (k.cy - (a.x - k.cx))).abs() < 1e-9, "{a} {b}");
+        // A small positive roll turns it counter-clockwise too (up-right).
+        let c = px(&v.with_roll(10.0).unwrap());
+        assert!(c.y < k.cy && c.x > k.cx, "{c}");
+        let ang = (-(c.y - k.cy)).atan2(c.x - k.cx).to_degrees();
+        assert!((ang - 10.0).abs() < 1e-9, "{ang}");
+        // Still a proper rotation, forward unchanged.
+        let r = v.with_roll(37.0).unwrap().world_from_camera_rotation();
+        assert!((r.determinant() - 1.0).abs() < 1e-12);
+        assert!(r.z_axis.abs_diff_eq(r0.z_axis, 0.0));
+    }
+
+    #[test]
+    fn roll_is_wrapped_and_validated() {
+        let v = ViewPose::new(45.0, 0.0, 5.0).unwrap();
+        assert_eq!(v.roll_deg, 0.0);
+        for (given, want) in [
+            (0.0, 0.0),
+            (180.0, 180.0),
+            (-180.0, 180.0),
+            (190.0, -170.0),
+            (-190.0, 170.0),
+            (540.0, 180.0),
+            (-30.0, -30.0),
+            (1e-20, 1e-20),
+            (-1e-20, -1e-20),
+        ] {
+            assert_eq!(v.with_roll(given).unwrap().roll_deg, want, "{given}");
+        }
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let e = v.with_roll(bad).unwrap_err();
+            assert!(matches!(e, CaptureError::InvalidRoll { .. }));
+            assert!(e.to_string().contains("roll"), "{e}");
+        }
+        // Roll 0 is bit-identical to no roll; a full turn is the same pose.
+        let r = v.world_from_camera_rotation();
+        assert_eq!(v.with_roll(0.0).unwrap().world_from_camera_rotation(), r);
+        let full = v.with_roll(360.0).unwrap();
+        assert_eq!(full.roll_deg, 0.0);
+    }
+
+    #[test]
+    fn top_view_roll_equals_an_azimuth_change() {
+        // At the top view, +90 deg of azimuth turns the image clockwise, so
+        // a +90 roll (counter-clockwise) equals -90 deg of azimuth.
+        let rolled = ViewPose::new(90.0, 20.0, 5.0)
+            .unwrap()
+            .with_roll(90.0)
+            .unwrap()
+            .world_from_camera_rotation();
+        let turned = ViewPose::new(90.0, 290.0, 5.0)
+            .unwrap()
+            .world_from_camera_rotation();
+        assert!(rolled.abs_diff_eq(turned, 1e-12), "{rolled} {turned}");
     }
 }

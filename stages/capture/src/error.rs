@@ -82,6 +82,12 @@ pub enum CaptureError {
         /// The offending value in degrees.
         value: f64,
     },
+    /// Camera roll about the optical axis that is not a finite number.
+    #[error("camera roll {value} deg is not a finite number")]
+    InvalidRoll {
+        /// The offending value in degrees.
+        value: f64,
+    },
     /// Camera distance that is not finite and positive.
     #[error("camera distance {value} must be a finite number > 0 (in object bounding radii)")]
     InvalidDistance {

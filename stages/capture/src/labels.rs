@@ -2,23 +2,27 @@
 //! image, written by `acch render` and also used to label real images.
 //!
 //! ```text
-//! file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask
-//! view_0000.png,45,0,1.03,270,180,101,121,view_0000_mask.png
+//! file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask,roll_deg
+//! view_0000.png,45,0,1.03,270,180,101,121,view_0000_mask.png,0
 //! ```
 //!
 //! Paths are relative to the directory of the labels file. The bounding box
 //! (all four columns) and the mask may be empty or the columns absent; the
-//! columns may come in any order and unknown columns are ignored. Fields
+//! camera roll `roll_deg` (degrees about the optical axis, see
+//! [`crate::ViewPose::roll_deg`]) reads as 0 when empty or absent, so files
+//! written before it existed still load. The columns may come in any order
+//! and unknown columns are ignored. Fields
 //! containing commas or quotes are quoted the usual CSV way.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::camera::wrap_deg;
+use crate::camera::{wrap_deg, wrap_roll_deg};
 use crate::{BBox, CaptureError, GroundTruth};
 
 /// The header line written by [`write_labels`].
-pub const HEADER: &str = "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask";
+pub const HEADER: &str =
+    "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask,roll_deg";
 
 /// One labelled image.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,6 +39,9 @@ pub struct LabelRow {
     pub bbox: Option<BBox>,
     /// Object mask image path (relative, 255 = object), if known.
     pub mask: Option<String>,
+    /// Camera roll about its optical axis in degrees, (-180, 180]; 0 when
+    /// the file has no `roll_deg` column.
+    pub roll_deg: f64,
 }
 
 impl LabelRow {
@@ -54,6 +61,7 @@ impl LabelRow {
             distance_m: truth.distance * radius_m,
             bbox: truth.bbox,
             mask,
+            roll_deg: truth.roll_deg,
         }
     }
 }
@@ -91,6 +99,7 @@ pub fn write_labels(path: impl AsRef<Path>, rows: &[LabelRow]) -> Result<(), Cap
         if let Some(m) = &r.mask {
             s.push_str(&quote(m));
         }
+        let _ = write!(s, ",{}", r.roll_deg);
         s.push('\n');
     }
     std::fs::write(path, s).map_err(|e| CaptureError::io(path, e))
@@ -199,6 +208,7 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
     );
     let c_bbox = [col("bbox_x"), col("bbox_y"), col("bbox_w"), col("bbox_h")];
     let c_mask = col("mask");
+    let c_roll = col("roll_deg");
 
     let mut rows = Vec::new();
     for (ln, line) in lines {
@@ -272,6 +282,16 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
             ));
         };
         let mask = c_mask.map(|c| f[c].clone()).filter(|m| !m.is_empty());
+        let roll_deg = match c_roll.filter(|&c| !f[c].is_empty()) {
+            None => 0.0,
+            Some(c) => {
+                let roll = num(c)?;
+                if !roll.is_finite() {
+                    return Err(err(ln, format!("roll_deg {roll} is not finite")));
+                }
+                wrap_roll_deg(roll)
+            }
+        };
         rows.push(LabelRow {
             file,
             theta_deg,
@@ -279,6 +299,7 @@ pub fn parse_labels(text: &str, path: &Path) -> Result<Vec<LabelRow>, CaptureErr
             distance_m,
             bbox,
             mask,
+            roll_deg,
         });
     }
     Ok(rows)

@@ -4,7 +4,7 @@
 //! standing on a table and draws z-buffered, perspective-correct textured
 //! triangles with Lambert + ambient light over a ray-cast table plane, with
 //! optional blur, brightness change and sensor noise. Each image comes with
-//! its ground truth: elevation θ, azimuth φ, distance, camera pose,
+//! its ground truth: elevation θ, azimuth φ, roll, distance, camera pose,
 //! intrinsics, the target's visible-pixel mask and its bounding box.
 //!
 //! Conventions:
@@ -15,7 +15,9 @@
 //!   frame (x right, y down, z forward); forward = -c/|c|; image up
 //!   `e_θ = (-sin θ cos φ, -sin θ sin φ, cos θ)`; right = down × forward.
 //!   `world_from_camera` has rotation columns (right, down, forward) and
-//!   translation `c`.
+//!   translation `c`. A camera roll ρ (`ViewPose::roll_deg`) turns right and
+//!   down by +ρ about forward (`right' = cos ρ right + sin ρ down`), so the
+//!   image content turns by ρ counter-clockwise on screen.
 //! - Everything is seeded: the same seeds give the same bytes.
 //!
 //! ```no_run

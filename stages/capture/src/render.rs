@@ -75,6 +75,9 @@ pub struct GroundTruth {
     pub phi_deg: f64,
     /// Camera distance from the object centre in bounding radii.
     pub distance: f64,
+    /// Camera roll about its optical axis in degrees, (-180, 180]
+    /// (see [`ViewPose::roll_deg`]).
+    pub roll_deg: f64,
     /// Camera pose: OpenCV camera frame to world frame.
     pub world_from_camera: DAffine3,
     /// The camera's intrinsics.
@@ -251,6 +254,7 @@ impl Renderer {
             theta_deg: view.theta_deg,
             phi_deg: view.phi_deg,
             distance: view.distance,
+            roll_deg: view.roll_deg,
             world_from_camera,
             intrinsics: k,
             bbox: mask_bbox(&out.mask),

@@ -7,7 +7,7 @@ use glam::DAffine3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::camera::{check_distance, wrap_deg};
+use crate::camera::{check_distance, wrap_deg, wrap_roll_deg};
 use crate::{CaptureError, ViewPose};
 
 /// A seeded, infinitely long, smooth camera path: elevation oscillates inside
@@ -16,7 +16,8 @@ use crate::{CaptureError, ViewPose};
 /// sinusoids; azimuth drifts at a steady rate plus a slow sinusoidal sway and
 /// wraps through 360. Speeds stay below about 10 deg/s in θ (scaled by the
 /// band's width over 44°) and 30 deg/s in φ, so consecutive frames at 30 fps
-/// are close. The distance is constant.
+/// are close. The distance is constant. The camera does not roll unless
+/// [`Trajectory::with_roll`] asks it to.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Trajectory {
     fps: f64,
@@ -29,6 +30,9 @@ pub struct Trajectory {
     phi_rate: f64,
     sway_freq: f64,
     sway_phase: f64,
+    roll_max: f64,
+    roll_freq: [f64; 2],
+    roll_phase: [f64; 2],
 }
 
 /// One frame of a [`Trajectory`].
@@ -51,6 +55,9 @@ pub struct TrajectoryFrame {
 const THETA_AMP: [f64; 2] = [17.5, 4.5];
 const DEFAULT_HALF_BAND: f64 = 22.0;
 const PHI_SWAY: f64 = 25.0;
+/// Weights of the two roll sinusoids (they sum to 1, so the roll stays
+/// within the amplitude).
+const ROLL_WEIGHT: [f64; 2] = [0.7, 0.3];
 
 impl Trajectory {
     /// Elevation band of [`Trajectory::new`], degrees: inside the paper
@@ -94,6 +101,17 @@ impl Trajectory {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7472_616a);
         let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
         let half = (hi - lo) / 2.0;
+        // The roll has its own stream, so the rest of the path does not
+        // depend on it.
+        let mut roll_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x726f_6c6c);
+        let roll_freq = [
+            roll_rng.random_range(0.04..0.08),
+            roll_rng.random_range(0.10..0.18),
+        ];
+        let roll_phase = [
+            roll_rng.random_range(0.0..TAU),
+            roll_rng.random_range(0.0..TAU),
+        ];
         Ok(Trajectory {
             fps,
             distance,
@@ -105,7 +123,38 @@ impl Trajectory {
             phi_rate: sign * rng.random_range(6.0..15.0),
             sway_freq: rng.random_range(0.03..0.07),
             sway_phase: rng.random_range(0.0..TAU),
+            roll_max: 0.0,
+            roll_freq,
+            roll_phase,
         })
+    }
+
+    /// The same path with the camera rolling about its optical axis within
+    /// `±max_deg` (0 <= max <= 180): a sum of two slow sinusoids (periods of
+    /// about 12-25 s and 5-10 s, drawn from the trajectory's seed), at most
+    /// about `0.7 · max_deg` deg/s, so 30° changes by under 1° per frame at
+    /// 30 fps. Frame 0 may be rolled. 0 = no roll (the default).
+    pub fn with_roll(self, max_deg: f64) -> Result<Self, CaptureError> {
+        if !(max_deg.is_finite() && (0.0..=180.0).contains(&max_deg)) {
+            return Err(CaptureError::InvalidTrajectory {
+                reason: format!("roll amplitude {max_deg} deg must be in [0, 180]"),
+            });
+        }
+        Ok(Trajectory {
+            roll_max: max_deg,
+            ..self
+        })
+    }
+
+    /// The camera roll at time `t` seconds, degrees.
+    fn roll_at(&self, t: f64) -> f64 {
+        if self.roll_max == 0.0 {
+            return 0.0;
+        }
+        let s: f64 = (0..2)
+            .map(|i| ROLL_WEIGHT[i] * (TAU * self.roll_freq[i] * t + self.roll_phase[i]).sin())
+            .sum();
+        wrap_roll_deg((self.roll_max * s).clamp(-self.roll_max, self.roll_max))
     }
 
     /// Frames per second.
@@ -125,6 +174,7 @@ impl Trajectory {
             theta_deg: theta.clamp(0.0, 90.0),
             phi_deg: wrap_deg(phi),
             distance: self.distance,
+            roll_deg: self.roll_at(t),
         }
     }
 
@@ -208,5 +258,45 @@ mod tests {
             let e = Trajectory::with_elevation(0, 5.0, 5.0, a, b).unwrap_err();
             assert!(e.to_string().contains("elevation band"), "{e}");
         }
+    }
+
+    #[test]
+    fn roll_is_smooth_bounded_and_off_by_default() {
+        let plain = Trajectory::new(7, 30.0, 5.0).unwrap();
+        let rolled = plain.clone().with_roll(30.0).unwrap();
+        let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut prev: Option<f64> = None;
+        for (a, b) in plain.frames().zip(rolled.frames()).take(30 * 120) {
+            assert_eq!(a.view.roll_deg, 0.0);
+            // Only the roll differs.
+            assert_eq!(
+                (a.view.theta_deg, a.view.phi_deg, a.view.distance),
+                (b.view.theta_deg, b.view.phi_deg, b.view.distance)
+            );
+            let r = b.view.roll_deg;
+            assert!(r.abs() <= 30.0, "frame {}: roll {r}", b.index);
+            if let Some(p) = prev {
+                assert!((r - p).abs() < 1.5, "frame {}: {p} -> {r}", b.index);
+            }
+            prev = Some(r);
+            min = min.min(r);
+            max = max.max(r);
+        }
+        // It really rolls, both ways, over two minutes.
+        assert!(min < -15.0 && max > 15.0, "{min} {max}");
+        // The camera motion includes the roll.
+        let f = rolled.frame(45);
+        let prev = rolled.view_at(44.0 / 30.0);
+        let expect = prev.camera_from_world() * f.view.world_from_camera();
+        assert!(f.camera_motion.abs_diff_eq(expect, 1e-12));
+        assert!(
+            !f.camera_motion
+                .abs_diff_eq(plain.frame(45).camera_motion, 1e-9)
+        );
+        for bad in [-1.0, 181.0, f64::NAN] {
+            let e = plain.clone().with_roll(bad).unwrap_err();
+            assert!(e.to_string().contains("roll"), "{e}");
+        }
+        assert_eq!(plain.clone().with_roll(0.0).unwrap(), plain);
     }
 }

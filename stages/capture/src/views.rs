@@ -69,6 +69,7 @@ impl ViewSpec {
                             theta_deg,
                             phi_deg,
                             distance,
+                            roll_deg: 0.0,
                         })
                     })
                     .collect()
@@ -83,6 +84,7 @@ impl ViewSpec {
                             theta_deg,
                             phi_deg,
                             distance,
+                            roll_deg: 0.0,
                         }
                     })
                     .collect()

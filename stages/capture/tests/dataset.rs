@@ -77,6 +77,7 @@ fn labels_round_trip() {
                 height: 121,
             }),
             mask: Some("view_0000_mask.png".into()),
+            roll_deg: 0.0,
         },
         LabelRow {
             file: "real, odd \"name\".png".into(),
@@ -85,13 +86,23 @@ fn labels_round_trip() {
             distance_m: 0.1 + 0.2,
             bbox: None,
             mask: None,
+            roll_deg: -123.456_789_012_345_6,
+        },
+        LabelRow {
+            file: "c.png".into(),
+            theta_deg: 90.0,
+            phi_deg: 10.0,
+            distance_m: 1.0,
+            bbox: None,
+            mask: None,
+            roll_deg: 180.0,
         },
     ];
     write_labels(&path, &rows).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.starts_with(&format!("{HEADER}\n")));
     assert!(
-        text.contains("view_0000.png,45,0,1.25,270,180,101,121,view_0000_mask.png\n"),
+        text.contains("view_0000.png,45,0,1.25,270,180,101,121,view_0000_mask.png,0\n"),
         "{text}"
     );
     assert_eq!(read_labels(&path).unwrap(), rows);
@@ -114,6 +125,48 @@ fn hand_written_labels_with_fewer_columns_read() {
     );
     assert_eq!(rows[1].phi_deg, 10.0);
     assert_eq!(rows[1].bbox, None);
+    assert_eq!(rows[1].roll_deg, 0.0);
+}
+
+#[test]
+fn labels_without_roll_read_as_unrolled_and_roll_is_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.csv");
+    // A file written before the roll_deg column existed.
+    std::fs::write(
+        &path,
+        "file,theta_deg,phi_deg,distance_m,bbox_x,bbox_y,bbox_w,bbox_h,mask\n\
+         view_0000.png,45,0,1.03,270,180,101,121,view_0000_mask.png\n",
+    )
+    .unwrap();
+    let rows = read_labels(&path).unwrap();
+    assert_eq!(rows.len(), 1);
+    assert_eq!(rows[0].roll_deg, 0.0);
+    assert_eq!(rows[0].mask.as_deref(), Some("view_0000_mask.png"));
+    // An empty roll is 0; rolls are wrapped into (-180, 180].
+    std::fs::write(
+        &path,
+        "roll_deg,file,theta_deg,phi_deg,distance_m\n,a.png,45,0,1\n-180,b.png,45,0,1\n190,c.png,45,0,1\n",
+    )
+    .unwrap();
+    let rolls: Vec<f64> = read_labels(&path)
+        .unwrap()
+        .iter()
+        .map(|r| r.roll_deg)
+        .collect();
+    assert_eq!(rolls, [0.0, 180.0, -170.0]);
+    for (bad, needle) in [("x", "'x' is not a number"), ("inf", "not finite")] {
+        std::fs::write(
+            &path,
+            format!("file,theta_deg,phi_deg,distance_m,roll_deg\na.png,45,0,1,{bad}\n"),
+        )
+        .unwrap();
+        let msg = read_labels(&path).unwrap_err().to_string();
+        assert!(
+            msg.contains("old.csv:2:") && msg.contains("roll_deg") && msg.contains(needle),
+            "{msg}"
+        );
+    }
 }
 
 #[test]
@@ -128,20 +181,20 @@ fn bad_labels_name_file_and_line() {
             "now 'distance_m', in metres",
         ),
         (
-            &format!("{HEADER}\na.png,45,0,5,,,,,\nb.png,95,0,5,,,,,\n"),
+            &format!("{HEADER}\na.png,45,0,5,,,,,,\nb.png,95,0,5,,,,,,\n"),
             3,
             "95",
         ),
-        (&format!("{HEADER}\na.png,4x5,0,5,,,,,\n"), 2, "'4x5'"),
+        (&format!("{HEADER}\na.png,4x5,0,5,,,,,,\n"), 2, "'4x5'"),
         (
-            &format!("{HEADER}\na.png,45,0,5,1,2,,,\n"),
+            &format!("{HEADER}\na.png,45,0,5,1,2,,,,\n"),
             2,
             "all set or all empty",
         ),
         (&format!("{HEADER}\na.png,45,0,5,1,2\n"), 2, "fields"),
-        (&format!("{HEADER}\na.png,45,0,-5,,,,,\n"), 2, "distance_m"),
+        (&format!("{HEADER}\na.png,45,0,-5,,,,,,\n"), 2, "distance_m"),
         (
-            &format!("{HEADER}\n\"a.png,45,0,5,,,,,\n"),
+            &format!("{HEADER}\n\"a.png,45,0,5,,,,,,\n"),
             2,
             "unterminated",
         ),

@@ -514,21 +514,25 @@ fn view_pose_validation() {
             theta_deg: 120.0,
             phi_deg: -30.0,
             distance: 5.0,
+            roll_deg: 0.0,
         },
         ViewPose {
             theta_deg: 45.0,
             phi_deg: 0.0,
             distance: 0.0,
+            roll_deg: 0.0,
         },
         ViewPose {
             theta_deg: f64::NAN,
             phi_deg: 0.0,
             distance: 5.0,
+            roll_deg: 0.0,
         },
         ViewPose {
             theta_deg: 45.0,
             phi_deg: 0.0,
             distance: 0.5,
+            roll_deg: 0.0,
         },
     ] {
         let _ = r.render(&bad, 0);
@@ -650,4 +654,48 @@ fn held_out_tables_are_other_textures_of_the_same_look() {
         TextureSet::HeldOut
     );
     assert!("lunar".parse::<TextureSet>().is_err());
+}
+
+#[test]
+fn roll_90_turns_the_render_counter_clockwise() {
+    let r = renderer("fruitbox", Background::default(), Effects::default(), 0);
+    let v = view(90.0, 0.0);
+    let a = r.render(&v, 0);
+    let b = r.render(&v.with_roll(90.0).unwrap(), 0);
+    assert_eq!(b.truth.roll_deg, 90.0);
+    assert_eq!(a.truth.roll_deg, 0.0);
+    let (ba, bb) = (a.truth.bbox.unwrap(), b.truth.bbox.unwrap());
+    // The 24 x 15 cm top face is far from square, so the swap shows.
+    assert!(ba.width.abs_diff(ba.height) > 20, "{ba:?}");
+    assert!(
+        ba.width.abs_diff(bb.height) <= 1 && ba.height.abs_diff(bb.width) <= 1,
+        "roll 0 {ba:?}, roll 90 {bb:?}"
+    );
+    // The whole mask turns counter-clockwise, and so does the texture.
+    let (ccw, cw) = (
+        rotated_iou(&a.mask, &b.mask, false),
+        rotated_iou(&a.mask, &b.mask, true),
+    );
+    assert!(ccw > 0.97, "IoU counter-clockwise {ccw}, clockwise {cw}");
+    let diff = |clockwise: bool| {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (x, y, m) in b.mask.enumerate_pixels() {
+            let Some((sx, sy)) = rotated_source(x, y, clockwise) else {
+                continue;
+            };
+            if m[0] != 0 && a.mask.get_pixel(sx, sy)[0] != 0 {
+                let (p, q) = (b.image.get_pixel(x, y).0, a.image.get_pixel(sx, sy).0);
+                sum += (0..3)
+                    .map(|i| (p[i] as f64 - q[i] as f64).abs())
+                    .sum::<f64>();
+                n += 3.0;
+            }
+        }
+        sum / n
+    };
+    let (right, wrong) = (diff(false), diff(true));
+    assert!(
+        right < 4.0 && wrong > 4.0 * right,
+        "mean abs diff: counter-clockwise {right}, clockwise {wrong}"
+    );
 }

@@ -450,6 +450,51 @@ impl HistogramExtractor {
     }
 }
 
+/// The ACCH `h` (`bins` orientations x `colours` x `colours`) of the same
+/// view with the image turned `shift` orientation bins counter-clockwise
+/// (`shift` x 180° / `bins`), into `out`: bin d moves to d + shift, and a
+/// pair whose orientation passes 0° or 180° comes back the other way
+/// round, (a, b) as (b, a), because orientations are kept in [0°, 180°).
+pub fn roll_acch(h: &[f32], colours: usize, bins: usize, shift: i32, out: &mut [f32]) {
+    let block = colours * colours;
+    assert_eq!(h.len(), bins * block, "histogram length");
+    assert_eq!(out.len(), h.len(), "output length");
+    let d = bins as i32;
+    for to in 0..d {
+        let from = to - shift;
+        let (src, reversed) = (from.rem_euclid(d) as usize, from.div_euclid(d) % 2 != 0);
+        let (src, dst) = (
+            &h[src * block..(src + 1) * block],
+            &mut out[to as usize * block..(to as usize + 1) * block],
+        );
+        if reversed {
+            for a in 0..colours {
+                for b in 0..colours {
+                    dst[a * colours + b] = src[b * colours + a];
+                }
+            }
+        } else {
+            dst.copy_from_slice(src);
+        }
+    }
+}
+
+/// The part of an ACCH that no roll changes: its colour pairs summed over
+/// orientations and over both orders, `colours` x `colours`, into `out`.
+pub fn roll_invariant(h: &[f32], colours: usize, out: &mut [f32]) {
+    let block = colours * colours;
+    assert_eq!(out.len(), block, "output length");
+    assert_eq!(h.len() % block, 0, "histogram length");
+    out.fill(0.0);
+    for bin in h.chunks_exact(block) {
+        for a in 0..colours {
+            for b in 0..colours {
+                out[a * colours + b] += bin[a * colours + b] + bin[b * colours + a];
+            }
+        }
+    }
+}
+
 /// Histogram intersection s(h1, h2) = sum of min(h1, h2) (paper eq. 1).
 pub fn intersection(h1: &[f32], h2: &[f32]) -> f32 {
     assert_eq!(h1.len(), h2.len(), "histogram lengths differ");
@@ -610,6 +655,53 @@ mod tests {
                 assert_eq!(at(&hr, 0, a, b), at(&h, 1, b, a), "bin 0 ({a},{b})");
             }
         }
+    }
+
+    /// The same check as above through [`roll_acch`]: a 90° turn is a roll
+    /// by D/2 bins; a roll by D is a full reversal, by 2D the identity; the
+    /// roll-invariant part is the same for the turned image.
+    #[test]
+    fn a_quarter_turn_is_a_roll_by_half_the_bins() {
+        let (w, c) = (24usize, 3usize);
+        let mut state = 987u32;
+        let data: Vec<u8> = (0..w * w)
+            .map(|_| {
+                state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+                ((state >> 16) % c as u32) as u8
+            })
+            .collect();
+        let rot: Vec<u8> = (0..w * w)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                data[x * w + (w - 1 - y)]
+            })
+            .collect();
+        let p = params(HistogramKind::Acch, c as u16, 2, 2.0, 5.0);
+        let mut e = HistogramExtractor::new(p).unwrap();
+        let (h, _) = counts(&mut e, &IndexImage::new(w as u32, w as u32, data), None);
+        let (hr, _) = counts(&mut e, &IndexImage::new(w as u32, w as u32, rot), None);
+        let mut rolled = vec![0.0; h.len()];
+        roll_acch(&h, c, 2, 1, &mut rolled);
+        assert_eq!(rolled, hr);
+        // Turning back.
+        roll_acch(&hr, c, 2, -1, &mut rolled);
+        assert_eq!(rolled, h);
+        // 180°: every pair reversed; 360°: nothing changes.
+        roll_acch(&h, c, 2, 2, &mut rolled);
+        let at = |h: &[f32], d: usize, a: usize, b: usize| h[(d * c + a) * c + b];
+        for d in 0..2 {
+            for a in 0..c {
+                for b in 0..c {
+                    assert_eq!(at(&rolled, d, a, b), at(&h, d, b, a));
+                }
+            }
+        }
+        roll_acch(&h, c, 2, 4, &mut rolled);
+        assert_eq!(rolled, h);
+        let (mut inv, mut inv_r) = (vec![0.0; c * c], vec![0.0; c * c]);
+        roll_invariant(&h, c, &mut inv);
+        roll_invariant(&hr, c, &mut inv_r);
+        assert_eq!(inv, inv_r);
     }
 
     #[test]

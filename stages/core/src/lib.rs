@@ -14,6 +14,6 @@ pub mod palette;
 pub use database::{DbError, View, ViewDatabase};
 pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
-    match_value,
+    match_value, roll_acch, roll_invariant,
 };
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};

@@ -12,6 +12,10 @@ pub struct FrameTruth {
     pub phi_deg: f64,
     /// Camera distance to the object centre, metres.
     pub distance_m: f64,
+    /// The camera's roll about its optical axis, degrees (absent in
+    /// recordings made before it was recorded: 0).
+    #[serde(default)]
+    pub roll_deg: f64,
     /// camera_from_object, column-major 3x4 (rotation columns, translation
     /// in metres).
     pub camera_from_object: [f64; 12],

@@ -12,6 +12,7 @@ fn info(sequence: u64, w: u32, h: u32) -> FrameInfo {
             theta_deg: 45.0 + 1.0 / 3.0,
             phi_deg: 359.999_999_999_9,
             distance_m: 5.0,
+            roll_deg: -12.5 + 1.0 / 9.0,
             camera_from_object: std::array::from_fn(|i| (i as f64).sqrt() - 1.0 / 7.0),
         }),
         arm_world_from_camera: (sequence % 3 != 1)

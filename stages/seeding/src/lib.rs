@@ -154,6 +154,10 @@ pub struct SeedInput {
     pub theta_deg: f64,
     /// Estimated azimuth, degrees (any finite value).
     pub phi_deg: f64,
+    /// Estimated roll of the camera about its optical axis, degrees (the
+    /// image turned counter-clockwise by it against image up = `e_θ`); 0
+    /// when not estimated.
+    pub roll_deg: f64,
     /// Where the object centre projects, pixels: the region of interest's
     /// centre, corrected by the matched view's centre offset.
     pub roi_centre_px: DVec2,
@@ -210,6 +214,9 @@ pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedErro
             input.theta_deg, input.phi_deg
         ));
     }
+    if !input.roll_deg.is_finite() {
+        return bad(format!("roll {} is not finite", input.roll_deg));
+    }
     if !input.roi_centre_px.is_finite() {
         return bad(format!("ROI centre {} is not finite", input.roi_centre_px));
     }
@@ -236,11 +243,14 @@ pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedErro
         return bad(format!("grid spacing {g:?} must be finite and >= 0"));
     }
 
-    // Rotation: look-at camera, turned onto the ray through the ROI centre.
+    // Rotation: look-at camera, rolled about its axis (the camera's axes
+    // turn by +roll, so object coordinates turn by -roll), then turned onto
+    // the ray through the ROI centre.
     let ray = k.direction(input.roi_centre_px);
     let turn = DQuat::from_rotation_arc(DVec3::Z, ray);
     let look_at = view_rotation(input.theta_deg, input.phi_deg);
-    let rotation = DMat3::from_quat(turn) * look_at;
+    let unroll = DMat3::from_rotation_z(-input.roll_deg.to_radians());
+    let rotation = DMat3::from_quat(turn) * unroll * look_at;
     let camera_from_object = DAffine3::from_mat3_translation(rotation, d * ray);
 
     // Rotation covariance in the look-at camera's frame: a θ error turns the
@@ -261,7 +271,7 @@ pub fn seed(input: &SeedInput, model: &CovarianceModel) -> Result<Seed, SeedErro
     let mut rot_cov = outer(x_axis, x_axis) * var(g.theta_deg)
         + outer(z_obj, z_obj) * var(g.phi_deg)
         + outer(roll, roll) * (model.roll_sigma_deg.to_radians().powi(2) + (1.0 - c) * var(0.0));
-    let turn_m = DMat3::from_quat(turn);
+    let turn_m = DMat3::from_quat(turn) * unroll;
     rot_cov = turn_m * rot_cov * turn_m.transpose();
 
     // Translation covariance: along the ray from the distance; across it
@@ -351,6 +361,7 @@ mod tests {
         SeedInput {
             theta_deg: view.theta_deg,
             phi_deg: view.phi_deg,
+            roll_deg: view.roll_deg,
             roi_centre_px: centre,
             intrinsics: pinhole(&Intrinsics::default()),
             distance: Distance::Known {
@@ -379,13 +390,27 @@ mod tests {
         let k = Intrinsics::default();
         for theta in [0.0, 10.0, 45.0, 67.5, 89.0, 90.0] {
             for phi in [0.0, 33.0, 90.0, 180.0, 271.0, 359.9] {
-                for dist in [2.0, 5.0, 9.0] {
-                    let view = ViewPose::new(theta, phi, dist).unwrap();
+                for (dist, roll) in [
+                    (2.0, 0.0),
+                    (5.0, 0.0),
+                    (9.0, 0.0),
+                    (5.0, 30.0),
+                    (5.0, -75.0),
+                ] {
+                    // A rolled camera too: the seed's rotation carries the
+                    // roll the way the renderer's camera does.
+                    let view = ViewPose::new(theta, phi, dist)
+                        .unwrap()
+                        .with_roll(roll)
+                        .unwrap();
                     let truth = view.camera_from_world();
                     let centre = k.project(truth.transform_point3(DVec3::ZERO)).unwrap();
                     let s = seed(&input(&view, centre), &CovarianceModel::default()).unwrap();
                     let diff = max_diff(s.camera_from_object, truth);
-                    assert!(diff < 1e-6, "θ {theta} φ {phi} d {dist}: diff {diff}");
+                    assert!(
+                        diff < 1e-6,
+                        "θ {theta} φ {phi} d {dist} roll {roll}: diff {diff}"
+                    );
                 }
             }
         }

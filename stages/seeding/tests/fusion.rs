@@ -40,6 +40,7 @@ fn input(view: &ViewPose, dtheta: f64, dphi: f64, confidence: f64) -> SeedInput 
         SeedInput {
             theta_deg: (view.theta_deg + dtheta).clamp(0.0, 90.0),
             phi_deg: view.phi_deg + dphi,
+            roll_deg: 0.0,
             roi_centre_px: centre,
             intrinsics: Pinhole {
                 fx: k.fx,
@@ -95,6 +96,7 @@ fn view_is_read_back_from_the_pose_everywhere_including_the_pole() {
         &SeedInput {
             theta_deg: 70.0,
             phi_deg: 200.0,
+            roll_deg: 0.0,
             roi_centre_px: DVec2::new(500.0, 90.0),
             intrinsics: Pinhole {
                 fx: k.fx,
