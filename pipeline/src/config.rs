@@ -20,6 +20,14 @@ pub struct PipelineConfig {
     pub instance: String,
     /// Built-in object name.
     pub object: String,
+    /// A textured OBJ mesh for the simulated scene instead of the built-in
+    /// object (its default database is trained for it and cached).
+    pub mesh: Option<PathBuf>,
+    /// Which axis of `mesh` points up: +y (the OBJ convention), -y, +z,
+    /// -z, +x or -x.
+    pub mesh_up: String,
+    /// The unit of `mesh`'s coordinates, metres (unset: metres).
+    pub mesh_unit_m: Option<f64>,
     /// View database; the launcher fills in the cached default.
     pub db: Option<PathBuf>,
     /// Where default databases are cached.
@@ -170,6 +178,9 @@ impl Default for PipelineConfig {
             cache_dir: None,
             source: "synthetic".into(),
             camera_info: None,
+            mesh: None,
+            mesh_up: "+y".into(),
+            mesh_unit_m: None,
             roll_search_deg: 0.0,
             camera_roll_deg: 0.0,
             background: "A".into(),
@@ -600,7 +611,18 @@ impl PipelineConfig {
 
     /// The built-in object of the simulated scene, at its configured size.
     pub fn scene_object(&self) -> Result<acch_capture::Object, ConfigError> {
-        let object = acch_capture::Object::builtin(&self.object).map_err(ConfigError::Object)?;
+        let object = match &self.mesh {
+            Some(path) => {
+                let up = self.mesh_up.parse().map_err(ConfigError::Object)?;
+                let object = acch_capture::Object::load_obj_with_up(path, up)
+                    .map_err(ConfigError::Object)?;
+                match self.mesh_unit_m {
+                    Some(unit) => object.with_mesh_unit_m(unit).map_err(ConfigError::Object)?,
+                    None => object,
+                }
+            }
+            None => acch_capture::Object::builtin(&self.object).map_err(ConfigError::Object)?,
+        };
         match self.object_radius_m {
             Some(r) => object.with_radius_m(r).map_err(ConfigError::Object),
             None => Ok(object),

@@ -178,6 +178,11 @@ impl RunArgs {
         if let Some(name) = &self.object.object {
             cfg.object.clone_from(name);
         }
+        if let Some(mesh) = &self.object.mesh {
+            cfg.mesh = Some(mesh.clone());
+            cfg.mesh_up = self.object.mesh_up.to_string();
+            cfg.mesh_unit_m = self.object.mesh_unit_m;
+        }
         if let Some(r) = self.object.object_radius_m {
             cfg.object_radius_m = Some(r);
         }
@@ -189,6 +194,14 @@ impl RunArgs {
             cfg.frames = acch_record::scan(Path::new(path))
                 .with_context(|| format!("reading the recording {path}"))?
                 .frames;
+        }
+        // A mesh's object goes by its own name in results and topics.
+        if cfg.mesh.is_some() {
+            cfg.object = cfg
+                .scene_object()
+                .context("invalid pipeline configuration")?
+                .name()
+                .to_owned();
         }
         cfg.validate().context("invalid pipeline configuration")?;
         if cfg.db.is_none() {
