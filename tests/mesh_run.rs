@@ -18,7 +18,8 @@ fn run_over_a_mesh_estimates_that_mesh() {
     )
     .unwrap();
     let results = dir.path().join("r.jsonl");
-    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/duck/duck.obj");
+    // The shared duck, as tests/render_cli.rs reads it.
+    let mesh = "/work/shared/data/duck/duck.obj";
     let out = Command::new(env!("CARGO_BIN_EXE_acch"))
         .args([
             "run",
