@@ -240,9 +240,12 @@ fn a_pipeline_that_fails_mid_stream_is_reopened_and_the_loss_reported() {
     );
     let camera = &capture_counters(&summary)["camera"];
     let failures = camera["failures"].as_u64().unwrap();
+    // 60 frames from pipelines of 25 buffers: two failures, one more for
+    // every 25 buffers a slow machine's appsink drops.
+    let dropped = camera["dropped"].as_u64().unwrap();
     assert!(
-        (2..=3).contains(&failures),
-        "60 frames in pipelines of 25 fail twice: {camera}"
+        (2..=2 + dropped.div_ceil(25) + 1).contains(&failures),
+        "60 frames in pipelines of 25 fail twice (dropped {dropped}): {camera}"
     );
     // Reopening takes at least the first backoff (100 ms, 3 frames).
     assert!(
