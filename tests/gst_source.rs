@@ -9,42 +9,10 @@
 
 mod common;
 
-use common::free_port;
+use common::acch_run;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-use std::sync::Mutex;
-
-/// One run at a time: they share the 2 CPUs, and the live ones time.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-fn config(dir: &Path) -> PathBuf {
-    let p = dir.join("pipeline.toml");
-    std::fs::write(
-        &p,
-        format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port()),
-    )
-    .unwrap();
-    p
-}
-
-fn acch_run(dir: &Path, args: &[&str]) -> Output {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
-        .arg("run")
-        .arg("--config")
-        .arg(config(dir))
-        .args(["--stall-timeout", "15"])
-        .args(args)
-        .output()
-        .unwrap();
-    eprintln!(
-        "acch run {}:\n{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
+use std::process::Command;
 
 /// Runs `acch run ARGS` to completion; its results (by sequence) and its
 /// summary.

@@ -7,44 +7,10 @@
 mod common;
 
 use acch_record::{TOPIC_RESULT, read_json};
-use common::{free_port, summary};
+use common::{acch_run, free_port, summary};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-use std::sync::Mutex;
-
-/// Pipelines share 2 cores: one at a time, or three pipelines' stages on
-/// the one stage CPU stall each other until frames overflow their queues.
-static SERIAL: Mutex<()> = Mutex::new(());
-
-/// A configuration that keeps zenoh on a free loopback port.
-fn config(dir: &Path) -> PathBuf {
-    let p = dir.join("pipeline.toml");
-    std::fs::write(
-        &p,
-        format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port()),
-    )
-    .unwrap();
-    p
-}
-
-fn acch_run(dir: &Path, args: &[&str]) -> Output {
-    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
-        .arg("run")
-        .arg("--config")
-        .arg(config(dir))
-        .args(["--stall-timeout", "15"])
-        .args(args)
-        .output()
-        .unwrap();
-    eprintln!(
-        "acch run {}:\n{}",
-        args.join(" "),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
+use std::path::Path;
+use std::process::Command;
 
 /// The results of a recording by sequence.
 fn results(path: &Path) -> Vec<Value> {

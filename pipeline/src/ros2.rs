@@ -514,6 +514,20 @@ impl Ros2Images {
     }
 }
 
+/// A frame's pixels as sensor_msgs/Image, borrowing them.
+fn image_of<'a>(header: &'a Header, h: &FrameHeader, pixels: &'a [u8]) -> ImageRef<'a> {
+    let f = &h.envelope.frame;
+    ImageRef {
+        header,
+        height: f.height,
+        width: f.width,
+        encoding: "rgb8",
+        is_bigendian: 0,
+        step: h.stride,
+        data: pixels,
+    }
+}
+
 impl Observe for Ros2Images {
     fn frame(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<(), ObserveError> {
         let f = &h.envelope.frame;
@@ -521,15 +535,7 @@ impl Observe for Ros2Images {
             return Ok(());
         }
         self.header.stamp = Time::from_ns(f.stamp_ns);
-        let image = ImageRef {
-            header: &self.header,
-            height: f.height,
-            width: f.width,
-            encoding: "rgb8",
-            is_bigendian: 0,
-            step: h.stride,
-            data: pixels,
-        };
+        let image = image_of(&self.header, h, pixels);
         self.publisher
             .publish_as(&image, acch_ros2::node::now_ns())
             .map_err(Ros2OutError::from)?;
@@ -744,15 +750,7 @@ impl Observe for Ros2Bag {
         }
         let f = &h.envelope.frame;
         self.header.stamp = Time::from_ns(f.stamp_ns);
-        let image = ImageRef {
-            header: &self.header,
-            height: f.height,
-            width: f.width,
-            encoding: "rgb8",
-            is_bigendian: 0,
-            step: h.stride,
-            data: pixels,
-        };
+        let image = image_of(&self.header, h, pixels);
         acch_ros2::msg::encode_as::<Image, _>(&image, &mut self.payload)
             .map_err(Ros2OutError::from)?;
         self.bag

@@ -5,8 +5,9 @@
 // Each test binary compiles this module and uses a part of it.
 #![allow(dead_code)]
 
-use std::path::Path;
-use std::process::Child;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// A TCP port on loopback that nothing listens on now (zenoh's).
@@ -42,4 +43,40 @@ impl Drop for Guard {
 /// A run's JSON summary (`acch run --json`).
 pub fn summary(json: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
+}
+
+/// A configuration in `dir` that keeps zenoh on a free loopback port.
+pub fn loopback_config(dir: &Path) -> PathBuf {
+    let p = dir.join("pipeline.toml");
+    std::fs::write(
+        &p,
+        format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port()),
+    )
+    .unwrap();
+    p
+}
+
+/// Pipelines share 2 cores: one at a time, or several pipelines' stages on
+/// the one stage CPU stall each other until frames overflow their queues.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// `acch run ARGS` on a loopback configuration in `dir`, one at a time per
+/// test binary, with a 15 s stall timeout; its stderr is echoed for the
+/// test log.
+pub fn acch_run(dir: &Path, args: &[&str]) -> Output {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let out = Command::new(env!("CARGO_BIN_EXE_acch"))
+        .arg("run")
+        .arg("--config")
+        .arg(loopback_config(dir))
+        .args(["--stall-timeout", "15"])
+        .args(args)
+        .output()
+        .unwrap();
+    eprintln!(
+        "acch run {}:\n{}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
