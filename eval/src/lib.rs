@@ -6,11 +6,15 @@
 //!   segmentation and the confidence network;
 //! - [`sequence`]: camera trajectories, single frames against the seeding
 //!   stage's fused pose, and active re-view after a rejection ([`review`]);
+//! - [`dataset`]: labelled photographs the user brings, a [`bop`] split or
+//!   a folder with labels.csv;
 //! - [`train`]: an object's whole database, and the cached default.
 //!
 //! One home for what they share ([`protocol`]): the paper's grid, the
 //! backgrounds and the failure rule.
 
+pub mod bop;
+pub mod dataset;
 pub mod protocol;
 pub mod review;
 pub mod sequence;

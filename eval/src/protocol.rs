@@ -41,6 +41,25 @@ pub fn view_errors(estimate: (f64, f64), truth: &ViewPose) -> (f64, f64) {
     )
 }
 
+/// The angle between two camera rotations given as (θ, φ, roll), degrees:
+/// the error of the whole rotation, which near θ = 90° stays small when a
+/// turn in φ is traded for a roll (the same rotation there). θ is clamped
+/// into [0, 90] to build the rotation.
+pub fn rotation_error_deg(estimate: [f64; 3], truth: [f64; 3]) -> f64 {
+    let rotation = |[t, p, roll]: [f64; 3]| {
+        let v = ViewPose {
+            theta_deg: t.clamp(0.0, 90.0),
+            phi_deg: p,
+            distance: 1.0,
+            roll_deg: roll,
+        };
+        glam::DQuat::from_mat3(&v.world_from_camera_rotation())
+    };
+    rotation(estimate)
+        .angle_between(rotation(truth))
+        .to_degrees()
+}
+
 /// Backgrounds of the textured-scene protocols: (reported name, renderer
 /// background). `clutter` is reported for distractors painted in the
 /// object's own colours.
@@ -172,6 +191,16 @@ mod tests {
         assert!(fails((60.0, 350.0), (60.0, 10.5)));
         assert!(!fails((60.0, 350.0), (60.0, 9.5)));
         assert!(fails((f32::NAN, 0.0), (60.0, 0.0)));
+    }
+
+    #[test]
+    fn a_turn_in_phi_traded_for_a_roll_is_the_same_rotation_only_at_the_pole() {
+        // Looking straight down, φ + 20° with roll + 20° is the same camera.
+        assert!(rotation_error_deg([90.0, 50.0, 20.0], [90.0, 30.0, 0.0]) < 1e-6);
+        // At the horizon it is a 28° error.
+        let e = rotation_error_deg([0.0, 50.0, 20.0], [0.0, 30.0, 0.0]);
+        assert!((e - 28.2).abs() < 0.2, "{e}");
+        assert!((rotation_error_deg([60.0, 10.0, 0.0], [60.0, 10.0, 15.0]) - 15.0).abs() < 1e-6);
     }
 
     #[test]

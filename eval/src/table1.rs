@@ -397,14 +397,11 @@ fn evaluate(
                 sum_phi += phi_error(e.phi_deg, truth.1) as f64;
                 sum_theta += (e.theta_deg - truth.0).abs() as f64;
                 sum_roll += roll_error(e.roll_deg as f64, r.truth.roll_deg);
-                let rotation = |t: f64, p: f64, roll: f64| {
-                    ViewPose::new(t.clamp(0.0, 90.0), p, 1.0)
-                        .and_then(|v| v.with_roll(roll))
-                        .map(|v| glam::DQuat::from_mat3(&v.camera_from_world().matrix3))
-                };
-                let est = rotation(e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64)?;
-                let tru = rotation(r.truth.theta_deg, r.truth.phi_deg, r.truth.roll_deg)?;
-                rotation_ok += (est.angle_between(tru).to_degrees() <= 10.0) as usize;
+                let error = protocol::rotation_error_deg(
+                    [e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64],
+                    [r.truth.theta_deg, r.truth.phi_deg, r.truth.roll_deg],
+                );
+                rotation_ok += (error <= 10.0) as usize;
                 estimated += 1;
                 failures += fails((e.theta_deg, e.phi_deg), truth) as usize;
             }

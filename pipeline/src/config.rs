@@ -20,11 +20,12 @@ pub struct PipelineConfig {
     pub instance: String,
     /// Built-in object name.
     pub object: String,
-    /// A textured OBJ mesh for the simulated scene instead of the built-in
-    /// object (its default database is trained for it and cached).
+    /// A mesh file (.obj, .ply, .gltf or .glb) for the simulated scene
+    /// instead of the built-in object (its default database is trained for
+    /// it and cached).
     pub mesh: Option<PathBuf>,
-    /// Which axis of `mesh` points up: +y (the OBJ convention), -y, +z,
-    /// -z, +x or -x.
+    /// Which axis of `mesh` points up: +y (the OBJ and glTF convention),
+    /// -y, +z, -z, +x or -x.
     pub mesh_up: String,
     /// The unit of `mesh`'s coordinates, metres (unset: metres).
     pub mesh_unit_m: Option<f64>,
@@ -614,8 +615,8 @@ impl PipelineConfig {
         let object = match &self.mesh {
             Some(path) => {
                 let up = self.mesh_up.parse().map_err(ConfigError::Object)?;
-                let object = acch_capture::Object::load_obj_with_up(path, up)
-                    .map_err(ConfigError::Object)?;
+                let object =
+                    acch_capture::Object::load_mesh(path, up).map_err(ConfigError::Object)?;
                 match self.mesh_unit_m {
                     Some(unit) => object.with_mesh_unit_m(unit).map_err(ConfigError::Object)?,
                     None => object,

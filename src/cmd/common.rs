@@ -9,8 +9,8 @@ use clap::Args;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-/// Which object to render, and its real size: a built-in one or an OBJ
-/// mesh.
+/// Which object to render, and its real size: a built-in one or a mesh
+/// file.
 #[derive(Args, Clone, Debug)]
 pub struct ObjectArgs {
     /// Built-in object: fruitbox (a 24 x 15 x 30 cm printed box), can (a
@@ -18,20 +18,20 @@ pub struct ObjectArgs {
     /// blocks, 10 cm long).
     #[arg(long, value_name = "NAME", conflicts_with = "mesh")]
     pub object: Option<String>,
-    /// Textured OBJ mesh instead: it needs texture coordinates and an MTL
-    /// material with a map_Kd texture (PNG, path relative to the MTL file).
-    /// Its coordinates are taken as metres (see --mesh-unit-m).
-    #[arg(long, value_name = "FILE.obj")]
+    /// A mesh file instead, by its extension: .obj (texture coordinates and
+    /// an MTL material with a map_Kd texture, relative to the MTL file),
+    /// .ply (a texture named by `comment TextureFile` with texture
+    /// coordinates, or vertex colours) or .gltf/.glb (glTF 2.0: base
+    /// colour texture, factor or COLOR_0). Its coordinates are taken as
+    /// metres (see --mesh-unit-m; BOP's PLY models are in millimetres:
+    /// --mesh-unit-m 0.001).
+    #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,
-    /// Which axis of the mesh file points up: +y (the OBJ convention), -y,
-    /// +z, -z, +x or -x.
-    #[arg(
-        long,
-        value_name = "AXIS",
-        default_value = "+y",
-        allow_hyphen_values = true
-    )]
-    pub mesh_up: UpAxis,
+    /// Which axis of the mesh file points up: +y, -y, +z, -z, +x or -x.
+    /// Default +y (the OBJ and glTF convention); +z for a BOP dataset's
+    /// models (`acch eval --bop`).
+    #[arg(long, value_name = "AXIS", allow_hyphen_values = true)]
+    pub mesh_up: Option<UpAxis>,
     /// The mesh file's unit in metres (0.001 for millimetres, 0.0254 for
     /// inches): poses and distances come out in metres.
     #[arg(
@@ -53,7 +53,7 @@ impl ObjectArgs {
     /// named.
     pub fn load(&self) -> Result<Arc<Object>> {
         let object = match (&self.object, &self.mesh) {
-            (_, Some(path)) => Object::load_obj_with_up(path, self.mesh_up)
+            (_, Some(path)) => Object::load_mesh(path, self.mesh_up.unwrap_or_default())
                 .with_context(|| format!("loading mesh {}", path.display()))?,
             (Some(name), None) => Object::builtin(name)?,
             (None, None) => Object::builtin("fruitbox")?,

@@ -2,10 +2,14 @@
 //! the in-process chain of the deployed stages (`acch_eval`).
 
 use super::common::{HistogramArgs, ObjectArgs};
+use acch_capture::UpAxis;
+use acch_eval::bop::{self, BOP_UNIT_M, ModelFrame};
+use acch_eval::dataset::{self, DatasetOptions, Segment};
 use acch_eval::{sequence, table1, table2};
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Evaluation protocols.
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -71,7 +75,8 @@ pub struct EvalArgs {
     /// optical axis.
     #[arg(long, value_name = "DEG", default_value_t = 0.0)]
     roll_deg: f64,
-    /// table1: the largest roll the pose stage searches, degrees (0: none).
+    /// table1, --bop, --labels: the largest roll the pose stage searches,
+    /// degrees (0: none).
     #[arg(long, value_name = "DEG", default_value_t = 0.0)]
     roll_search_deg: f64,
     /// Write the results as JSON.
@@ -89,10 +94,45 @@ pub struct EvalArgs {
     errors: Option<PathBuf>,
     #[command(flatten)]
     histogram: HistogramArgs,
+    /// Evaluate on a BOP dataset instead of rendered views: every annotated
+    /// instance of --object ID (a number: BOP's obj_id) in --split. The
+    /// database is --db, or that of the model DIR/models/obj_ID.ply
+    /// (millimetres, --mesh-up +z unless given), trained on first use and
+    /// cached.
+    #[arg(long, value_name = "DIR", conflicts_with = "labels")]
+    bop: Option<PathBuf>,
+    /// BOP: the split to read (DIR/SPLIT/SCENE/...).
+    #[arg(long, value_name = "NAME", default_value = "test", requires = "bop")]
+    split: String,
+    /// Evaluate on a folder of labelled images instead (labels.csv as
+    /// `acch render` writes it, with masks).
+    #[arg(long, value_name = "DIR")]
+    labels: Option<PathBuf>,
+    /// --bop/--labels: where the object comes from: mask (the annotated
+    /// visible part, table 1's figures) or auto (recognition and
+    /// segmentation, table 2's).
+    #[arg(long, value_enum, default_value = "mask")]
+    segment: SegmentArg,
+    /// --bop/--labels: the view database (`acch train`); default: the
+    /// object's, trained on first use and cached.
+    #[arg(long, value_name = "FILE.acchdb")]
+    db: Option<PathBuf>,
+}
+
+/// Where `acch eval --bop/--labels` takes the object from.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SegmentArg {
+    /// The annotated mask.
+    Mask,
+    /// Recognition and segmentation.
+    Auto,
 }
 
 /// Runs `acch eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
+    if args.bop.is_some() || args.labels.is_some() {
+        return run_dataset(args);
+    }
     let object = args.object.load()?;
     let config = args.histogram.train_config()?;
     match args.protocol {
@@ -145,6 +185,70 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 report.write_json(path)?;
             }
         }
+    }
+    Ok(())
+}
+
+/// `acch eval --bop DIR` or `--labels DIR`.
+fn run_dataset(args: EvalArgs) -> Result<()> {
+    let options = DatasetOptions {
+        segment: match args.segment {
+            SegmentArg::Mask => Segment::Mask,
+            SegmentArg::Auto => Segment::Auto,
+        },
+        roll_search_deg: args.roll_search_deg as f32,
+    };
+    let (images, source, object) = if let Some(dir) = &args.bop {
+        let id_text = args.object.object.as_deref().ok_or_else(|| {
+            anyhow::anyhow!("--bop needs --object ID, the BOP obj_id of the object to evaluate")
+        })?;
+        let obj_id: u32 = id_text.parse().with_context(|| {
+            format!("--object {id_text}: with --bop the object is BOP's numeric obj_id")
+        })?;
+        let info = bop::read_model_info(dir, obj_id)?;
+        let up = args.object.mesh_up.unwrap_or(UpAxis::PosZ);
+        let frame = ModelFrame {
+            up,
+            centre_mm: info.centre(),
+        };
+        let images = dataset::from_bop(dir, &args.split, obj_id, &frame)?;
+        // Without --db, the database of the dataset's model.
+        let object = match &args.db {
+            Some(_) => None,
+            None => {
+                let path = bop::model_path(dir, obj_id);
+                let object = acch_capture::Object::load_mesh(&path, up)
+                    .with_context(|| format!("loading the model {}", path.display()))?
+                    .with_mesh_unit_m(BOP_UNIT_M)?;
+                Some(Arc::new(object))
+            }
+        };
+        let source = format!("bop {} {}", dir.display(), args.split);
+        (images, source, object)
+    } else {
+        let dir = args
+            .labels
+            .as_ref()
+            .expect("run_dataset is called with one of them");
+        let object = match &args.db {
+            Some(_) => None,
+            None => Some(args.object.load()?),
+        };
+        (
+            dataset::from_labels(dir)?,
+            format!("labels {}", dir.display()),
+            object,
+        )
+    };
+    let db = match (&args.db, object) {
+        (Some(path), _) => acch_core::ViewDatabase::load(path)?,
+        (None, Some(object)) => acch_eval::train::cached_database(&object, None)?.0,
+        (None, None) => bail!("no database: name one with --db"),
+    };
+    let report = dataset::evaluate(&db, &images, &options, &source)?;
+    report.print();
+    if let Some(path) = &args.json {
+        report.write_json(path)?;
     }
     Ok(())
 }

@@ -1,5 +1,6 @@
 //! `acch render`: render views of an object with ground truth into a folder
-//! (images, masks, `labels.csv`, `truth.jsonl`) and optionally a contact sheet.
+//! (images, masks, `labels.csv`, `truth.jsonl`, or a BOP dataset) and
+//! optionally a contact sheet.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -12,6 +13,7 @@ use acch_capture::{
     Background, DEFAULT_DISTANCE, Effects, GroundTruth, Intrinsics, Rendered, Renderer,
     SceneConfig, TextureSet, ViewPose, ViewSpec, check_distance, derive_seed,
 };
+use acch_eval::bop;
 use anyhow::{Context, Result, bail};
 use clap::{ArgGroup, Args};
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
@@ -113,7 +115,30 @@ pub struct RenderArgs {
         allow_negative_numbers = true
     )]
     roll_deg: f64,
+
+    /// What to write: labels (images, masks, labels.csv and truth.jsonl)
+    /// or bop (a BOP dataset: camera.json, models/ with the object's PLY
+    /// and models_info.json, and test/000000/ with rgb/, mask_visib/,
+    /// scene_gt.json, scene_camera.json and scene_gt_info.json).
+    #[arg(long, value_enum, default_value = "labels")]
+    format: Format,
+
+    /// bop: the object's obj_id in the dataset.
+    #[arg(long, value_name = "ID", default_value_t = 1)]
+    bop_object_id: u32,
 }
+
+/// What `acch render` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Format {
+    /// Our folder format, labels.csv.
+    Labels,
+    /// A BOP dataset.
+    Bop,
+}
+
+/// The split and scene a BOP render writes.
+const BOP_SPLIT: &str = "test";
 
 /// Salt of the per-view roll seeds, so they differ from the noise seeds.
 const ROLL_SALT: u64 = 0x726f_6c6c_5f64_6567;
@@ -127,6 +152,10 @@ fn view_roll(seed: u64, index: u64, max_deg: f64) -> f64 {
     let u = (derive_seed(seed ^ ROLL_SALT, index) >> 11) as f64 / (1u64 << 53) as f64;
     max_deg * (2.0 * u - 1.0)
 }
+
+/// One rendered view: its labels row, truth, frame seed, thumbnail and
+/// visible pixel count.
+type ViewOutput = (LabelRow, GroundTruth, u64, Option<RgbImage>, u64);
 
 /// Thumbnails in a contact sheet row.
 const SHEET_COLUMNS: usize = 18;
@@ -205,14 +234,38 @@ pub fn run(args: RenderArgs) -> Result<()> {
     );
     let want_thumbs = args.contact_sheet.is_some();
     let digits = (views.len().max(1) - 1).to_string().len().max(4);
-    let results: Vec<(LabelRow, GroundTruth, u64, Option<RgbImage>)> = views
+    let scene = bop::scene_dir(&args.out, BOP_SPLIT, 0);
+    if args.format == Format::Bop {
+        for sub in ["rgb", "mask_visib"] {
+            let dir = scene.join(sub);
+            std::fs::create_dir_all(&dir)
+                .with_context(|| format!("cannot create directory {}", dir.display()))?;
+        }
+    }
+    let results: Vec<ViewOutput> = views
         .par_iter()
         .enumerate()
         .map_init(Rendered::default, |frame, (i, view)| {
             let frame_seed = derive_seed(args.seed, i as u64);
             renderer.render_into(view, frame_seed, frame);
-            let file = format!("view_{i:0digits$}.png");
-            let mask = format!("view_{i:0digits$}_mask.png");
+            let (file, mask) = match args.format {
+                Format::Labels => (
+                    format!("view_{i:0digits$}.png"),
+                    format!("view_{i:0digits$}_mask.png"),
+                ),
+                Format::Bop => {
+                    let rel = |p: PathBuf| -> String {
+                        p.strip_prefix(&args.out)
+                            .unwrap_or(&p)
+                            .to_string_lossy()
+                            .into_owned()
+                    };
+                    (
+                        rel(bop::rgb_path(&scene, i as u32)),
+                        rel(bop::mask_visib_path(&scene, i as u32, 0)),
+                    )
+                }
+            };
             write_png(
                 &args.out.join(&file),
                 frame.image.as_raw(),
@@ -225,6 +278,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
                 frame.mask.dimensions(),
                 ExtendedColorType::L8,
             )?;
+            let visible_px = frame.mask.as_raw().iter().filter(|&&m| m != 0).count() as u64;
             let thumb = want_thumbs.then(|| thumbnail(&frame.image));
             progress.inc(1);
             Ok((
@@ -232,16 +286,30 @@ pub fn run(args: RenderArgs) -> Result<()> {
                 frame.truth.clone(),
                 frame_seed,
                 thumb,
+                visible_px,
             ))
         })
         .collect::<Result<_>>()?;
     progress.finish_and_clear();
 
-    let labels_path = args.out.join("labels.csv");
-    let rows: Vec<LabelRow> = results.iter().map(|r| r.0.clone()).collect();
-    write_labels(&labels_path, &rows)?;
-    let truth_path = args.out.join("truth.jsonl");
-    write_truth(&truth_path, &results, (&object_name, radius_m), &args)?;
+    match args.format {
+        Format::Labels => {
+            let labels_path = args.out.join("labels.csv");
+            let rows: Vec<LabelRow> = results.iter().map(|r| r.0.clone()).collect();
+            write_labels(&labels_path, &rows)?;
+            let truth_path = args.out.join("truth.jsonl");
+            write_truth(&truth_path, &results, (&object_name, radius_m), &args)?;
+        }
+        Format::Bop => {
+            let mut writer = bop::SceneWriter::default();
+            for (i, r) in results.iter().enumerate() {
+                writer.add(i as u32, args.bop_object_id, &r.1, radius_m, r.4);
+            }
+            writer.write(&scene)?;
+            bop::write_dataset_camera(&args.out, &intrinsics)?;
+            bop::write_model(&args.out, args.bop_object_id, &renderer.config().object)?;
+        }
+    }
     if let Some(sheet) = &args.contact_sheet {
         let thumbs: Vec<&RgbImage> = results.iter().filter_map(|r| r.3.as_ref()).collect();
         write_contact_sheet(sheet, &thumbs)?;
@@ -277,13 +345,13 @@ fn write_png(
 /// The full ground truth, one JSON object per view.
 fn write_truth(
     path: &Path,
-    results: &[(LabelRow, GroundTruth, u64, Option<RgbImage>)],
+    results: &[ViewOutput],
     (object, object_radius_m): (&str, f64),
     args: &RenderArgs,
 ) -> Result<()> {
     let write = || -> Result<()> {
         let mut w = BufWriter::new(File::create(path)?);
-        for (i, (row, truth, frame_seed, _)) in results.iter().enumerate() {
+        for (i, (row, truth, frame_seed, _, _)) in results.iter().enumerate() {
             let m = truth.world_from_camera;
             let (r, t) = (m.matrix3, m.translation);
             let matrix = [

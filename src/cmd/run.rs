@@ -180,7 +180,9 @@ impl RunArgs {
         }
         if let Some(mesh) = &self.object.mesh {
             cfg.mesh = Some(mesh.clone());
-            cfg.mesh_up = self.object.mesh_up.to_string();
+            if let Some(up) = self.object.mesh_up {
+                cfg.mesh_up = up.to_string();
+            }
             cfg.mesh_unit_m = self.object.mesh_unit_m;
         }
         if let Some(r) = self.object.object_radius_m {

@@ -64,11 +64,63 @@ pub enum CaptureError {
         /// What is wrong.
         reason: String,
     },
-    /// An OBJ file contains no triangles.
-    #[error("OBJ mesh {} contains no triangles", path.display())]
+    /// A mesh file contains no triangles.
+    #[error("mesh {} contains no triangles", path.display())]
     EmptyMesh {
-        /// The OBJ file.
+        /// The mesh file.
         path: PathBuf,
+    },
+    /// A PLY file could not be parsed or describes no usable mesh.
+    #[error("cannot load PLY mesh {}: {reason}", path.display())]
+    Ply {
+        /// The PLY file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A glTF 2.0 or GLB file could not be parsed or uses what the loader
+    /// does not support.
+    #[error("cannot load glTF mesh {}: {reason}", path.display())]
+    Gltf {
+        /// The .gltf or .glb file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A mesh (or a part of it) with nothing to colour it by.
+    #[error("mesh {} has no colour: neither vertex colours nor a texture{detail}", path.display())]
+    NoColour {
+        /// The mesh file.
+        path: PathBuf,
+        /// Which part, or why a texture it names does not count; empty or
+        /// starting with a space.
+        detail: String,
+    },
+    /// A texture image named by a PLY or glTF mesh could not be loaded.
+    #[error("cannot load texture {} (referenced by {}): {reason}", path.display(), mesh.display())]
+    MeshTexture {
+        /// The image file.
+        path: PathBuf,
+        /// The mesh file that names it.
+        mesh: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A mesh file whose extension names no supported format.
+    #[error("mesh {}: unknown mesh format (by its extension); accepted: {accepted}", path.display())]
+    UnknownMeshFormat {
+        /// The mesh file.
+        path: PathBuf,
+        /// The accepted extensions, comma separated.
+        accepted: String,
+    },
+    /// An object that cannot be written as a PLY mesh.
+    #[error("cannot write PLY mesh {}: {reason}", path.display())]
+    PlyWrite {
+        /// The PLY file to be written.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
     },
     /// Elevation outside [0, 90] degrees.
     #[error("elevation theta = {value} deg is outside [0, 90]")]

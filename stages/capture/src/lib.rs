@@ -2,10 +2,11 @@
 //!
 //! The renderer places a pinhole camera on the view sphere around an object
 //! standing on a table and draws z-buffered, perspective-correct textured
-//! triangles with Lambert + ambient light over a ray-cast table plane, with
-//! optional blur, brightness change and sensor noise. Each image comes with
-//! its ground truth: elevation θ, azimuth φ, roll, distance, camera pose,
-//! intrinsics, the target's visible-pixel mask and its bounding box.
+//! (or vertex-coloured) triangles with Lambert + ambient light over a
+//! ray-cast table plane, with optional blur, brightness change and sensor
+//! noise. Each image comes with its ground truth: elevation θ, azimuth φ,
+//! roll, distance, camera pose, intrinsics, the target's visible-pixel mask
+//! and its bounding box.
 //!
 //! Conventions:
 //! - World: z up; the target's bounding-sphere centre at the origin, radius 1
@@ -39,6 +40,7 @@ mod camera;
 mod effects;
 mod error;
 pub mod labels;
+mod mesh;
 mod noise;
 mod object;
 mod paint;
@@ -53,7 +55,7 @@ pub use calibration::{Calibration, Distortion, DistortionModel};
 pub use camera::{DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance};
 pub use effects::Effects;
 pub use error::CaptureError;
-pub use object::{BUILTIN_OBJECTS, Object, UpAxis};
+pub use object::{BUILTIN_OBJECTS, ModelInfo, Object, UpAxis};
 pub use render::{BBox, GroundTruth, Rendered, Renderer, SceneConfig, mask_bbox};
 pub use trajectory::{Frames, Trajectory, TrajectoryFrame};
 pub use views::ViewSpec;

@@ -1,9 +1,9 @@
-//! Renderable objects: built-in procedural ones and textured OBJ meshes.
+//! Renderable objects: built-in procedural ones and meshes loaded from
+//! OBJ, PLY and glTF files (the loaders live in `mesh`).
 
-use std::cell::RefCell;
 use std::collections::HashMap;
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::str::FromStr;
 
 use glam::{Vec2, Vec3};
@@ -24,9 +24,13 @@ pub(crate) struct Vertex {
     pub n: Vec3,
     /// Texture coordinates, v = 0 at the top row of the image.
     pub uv: Vec2,
+    /// Colour multiplier of the texel, 0-1 per channel, in the textures'
+    /// (sRGB-encoded) space: white for textured meshes, the vertex colour
+    /// over a white texture for vertex-coloured ones.
+    pub c: Vec3,
 }
 
-/// A textured triangle mesh ready to render. Target objects are normalised:
+/// A textured (or vertex-coloured) triangle mesh ready to render. Target objects are normalised:
 /// the centre of their axis-aligned bounding box is the origin, the farthest
 /// vertex lies at distance 1 (the bounding sphere has radius 1) and z is up,
 /// so the object stands on the table plane `z = table_z()`. The renderer
@@ -53,8 +57,8 @@ pub enum UpAxis {
     PosX,
     /// -x is up.
     NegX,
-    /// +y is up: the usual OBJ convention (Blender's default export), and the
-    /// duck's.
+    /// +y is up: the usual OBJ convention (Blender's default export), the
+    /// duck's, and glTF's by its specification.
     #[default]
     PosY,
     /// -y is up.
@@ -67,7 +71,7 @@ pub enum UpAxis {
 
 impl UpAxis {
     /// The proper rotation that takes this axis to +z.
-    fn to_z_up(self, p: Vec3) -> Vec3 {
+    pub(crate) fn to_z_up(self, p: Vec3) -> Vec3 {
         match self {
             UpAxis::PosZ => p,
             UpAxis::NegZ => Vec3::new(p.x, -p.y, -p.z),
@@ -76,6 +80,14 @@ impl UpAxis {
             UpAxis::PosX => Vec3::new(-p.z, p.y, p.x),
             UpAxis::NegX => Vec3::new(p.z, p.y, -p.x),
         }
+    }
+
+    /// The rotation that takes this axis to +z, as a matrix: a mesh file's
+    /// point `p` lies at `rotation() * p` in the z-up object frame (before
+    /// the loader recentres and scales it).
+    pub fn rotation(self) -> glam::DMat3 {
+        let col = |v: Vec3| self.to_z_up(v).as_dvec3();
+        glam::DMat3::from_cols(col(Vec3::X), col(Vec3::Y), col(Vec3::Z))
     }
 }
 
@@ -144,10 +156,28 @@ impl Object {
     /// texture coordinates and a material with `map_Kd`; missing normals are
     /// computed (smoothed across edges sharper than 60 degrees only).
     pub fn load_obj_with_up(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
-        load_obj_impl(path.as_ref(), up)
+        crate::mesh::obj::load(path.as_ref(), up)
     }
 
-    /// The object's name (the built-in name or the OBJ file's stem).
+    /// Loads a mesh file of any supported format, chosen by its extension
+    /// (case-insensitive): `.obj` (see [`Object::load_obj_with_up`]),
+    /// `.ply` or `.gltf` / `.glb` (glTF 2.0). The mesh is rotated so that
+    /// `up` becomes the world z axis and normalised to bounding radius 1.
+    ///
+    /// Colour: a PLY mesh shows its texture (`comment TextureFile`, with
+    /// per-vertex or per-face texture coordinates) if it has one, otherwise
+    /// its vertex colours; a glTF primitive shows its base colour (texture
+    /// times factor times `COLOR_0`). A mesh without any colour is an error.
+    ///
+    /// Units: the coordinates are taken as metres. That is glTF's unit (and
+    /// +y its up axis, the default [`UpAxis`]); OBJ and PLY files state no
+    /// unit. The BOP benchmark's PLY models are in millimetres: load them
+    /// with [`Object::with_mesh_unit_m`]`(0.001)`.
+    pub fn load_mesh(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
+        crate::mesh::load(path.as_ref(), up)
+    }
+
+    /// The object's name (the built-in name or the mesh file's stem).
     pub fn name(&self) -> &str {
         &self.name
     }
@@ -206,6 +236,53 @@ impl Object {
         self.table_z
     }
 
+    /// Writes the object as a binary little-endian PLY file whose
+    /// coordinates are in units of `unit_m` metres (0.001: millimetres, as
+    /// the BOP benchmark's models are): the object's normalised frame (z
+    /// up, bounding-box centre at the origin) times [`Object::radius_m`] /
+    /// `unit_m`, with vertex normals. A textured object gets texture
+    /// coordinates (`texture_u`, `texture_v`, v = 0 at the bottom of the
+    /// image) and one PNG atlas of all its textures next to the file
+    /// (`<stem>.png`, named by a `comment TextureFile` line); an object whose
+    /// textures are all single colours (`tricolor`, a vertex-coloured mesh)
+    /// gets vertex colours (`red`, `green`, `blue`) and no image.
+    ///
+    /// [`Object::load_mesh`] with [`UpAxis::PosZ`] and then
+    /// [`Object::with_mesh_unit_m`]`(unit_m)` reads the same object back.
+    /// An object with a real texture under varying vertex colours cannot be
+    /// written (a PLY file is coloured by one or the other).
+    pub fn write_ply(&self, path: impl AsRef<Path>, unit_m: f64) -> Result<(), CaptureError> {
+        check_size("the mesh unit", unit_m)?;
+        crate::mesh::ply::write(self, path.as_ref(), unit_m)
+    }
+
+    /// The object's size in units of `unit_m` metres (> 0), as the BOP
+    /// benchmark's `models_info.json` states it: the diameter (the largest
+    /// distance between two vertices) and the axis-aligned bounding box of
+    /// the vertices, in the frame [`Object::write_ply`] writes.
+    pub fn model_info(&self, unit_m: f64) -> ModelInfo {
+        let scale = self.radius_m / unit_m;
+        let mut seen = std::collections::HashSet::new();
+        let points: Vec<glam::DVec3> = self
+            .tris
+            .iter()
+            .flatten()
+            .filter(|v| seen.insert(v.p.to_array().map(f32::to_bits)))
+            .map(|v| v.p.as_dvec3() * scale)
+            .collect();
+        let lo = points
+            .iter()
+            .fold(glam::DVec3::splat(f64::INFINITY), |a, &p| a.min(p));
+        let hi = points
+            .iter()
+            .fold(glam::DVec3::splat(f64::NEG_INFINITY), |a, &p| a.max(p));
+        ModelInfo {
+            diameter: diameter(&points),
+            min: lo.to_array(),
+            size: (hi - lo).to_array(),
+        }
+    }
+
     /// Up to `k` dominant surface colours, most frequent first (area-weighted
     /// over the mesh, quantised to 3 bits per channel).
     pub(crate) fn dominant_colors(&self, k: usize) -> Vec<[u8; 3]> {
@@ -219,9 +296,17 @@ impl Object {
         for (tri, &t) in self.tris.iter().zip(&self.tri_tex) {
             let area = (tri[1].p - tri[0].p).cross(tri[2].p - tri[0].p).length() as f64 / 2.0;
             let tex = &self.textures[t as usize];
+            // One colour for the whole triangle keeps a white one exactly 1.
+            let uniform = tri[0].c == tri[1].c && tri[0].c == tri[2].c;
             for b in &bary {
                 let uv = tri[0].uv * b[0] + tri[1].uv * b[1] + tri[2].uv * b[2];
-                let c = tex.level(0).sample(uv.x, uv.y, tex.repeat);
+                let tint = if uniform {
+                    tri[0].c
+                } else {
+                    tri[0].c * b[0] + tri[1].c * b[1] + tri[2].c * b[2]
+                };
+                let texel = tex.level(0).sample(uv.x, uv.y, tex.repeat);
+                let c = [texel[0] * tint.x, texel[1] * tint.y, texel[2] * tint.z];
                 let key = (c[0] as u32 >> 5) << 6 | (c[1] as u32 >> 5) << 3 | (c[2] as u32 >> 5);
                 let e = bins.entry(key).or_insert((0.0, [0.0; 3]));
                 let wgt = area / bary.len() as f64;
@@ -240,6 +325,70 @@ impl Object {
             .map(|(_, w, s)| s.map(|x| (x / w).round().clamp(0.0, 255.0) as u8))
             .collect()
     }
+}
+
+/// An object's size as the BOP benchmark's `models_info.json` gives it
+/// (see [`Object::model_info`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelInfo {
+    /// The largest distance between two vertices.
+    pub diameter: f64,
+    /// The smallest x, y and z of the vertices (`min_x`, `min_y`, `min_z`).
+    pub min: [f64; 3],
+    /// The extent of the vertices along x, y and z (`size_x`, ...).
+    pub size: [f64; 3],
+}
+
+/// The largest distance between two of `points`, exactly. All pairs would
+/// be O(n^2); a pair can only beat the best distance so far if their
+/// distances from a centre add up to more, so with the points sorted by
+/// that distance and a good first guess (from farthest-point sweeps) few
+/// pairs are measured.
+fn diameter(points: &[glam::DVec3]) -> f64 {
+    let Some(&first) = points.first() else {
+        return 0.0;
+    };
+    let farthest = |a: glam::DVec3| {
+        points
+            .iter()
+            .map(|&p| (p, p.distance_squared(a)))
+            .fold((a, 0.0), |best, x| if x.1 > best.1 { x } else { best })
+    };
+    let (mut a, mut best2) = (first, 0.0f64);
+    for _ in 0..4 {
+        let (b, d2) = farthest(a);
+        if d2 <= best2 {
+            break;
+        }
+        (a, best2) = (b, d2);
+    }
+    let lo = points
+        .iter()
+        .fold(glam::DVec3::splat(f64::INFINITY), |m, &p| m.min(p));
+    let hi = points
+        .iter()
+        .fold(glam::DVec3::splat(f64::NEG_INFINITY), |m, &p| m.max(p));
+    let centre = (lo + hi) * 0.5;
+    let mut by_r: Vec<(f64, glam::DVec3)> =
+        points.iter().map(|&p| (p.distance(centre), p)).collect();
+    by_r.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let mut best = best2.sqrt();
+    for (i, &(ri, pi)) in by_r.iter().enumerate() {
+        if 2.0 * ri <= best {
+            break;
+        }
+        for &(rj, pj) in &by_r[i + 1..] {
+            if ri + rj <= best {
+                break;
+            }
+            let d2 = pi.distance_squared(pj);
+            if d2 > best2 {
+                best2 = d2;
+                best = d2.sqrt();
+            }
+        }
+    }
+    best
 }
 
 /// Builds meshes out of textured quads, boxes and cylinders.
@@ -267,9 +416,15 @@ impl MeshBuilder {
         (self.textures.len() - 1) as u32
     }
 
-    fn tri(&mut self, a: Vertex, b: Vertex, c: Vertex, tex: u32) {
+    /// Adds a triangle drawn with texture `tex`.
+    pub fn tri(&mut self, a: Vertex, b: Vertex, c: Vertex, tex: u32) {
         self.tris.push([a, b, c]);
         self.tri_tex.push(tex);
+    }
+
+    /// Whether no triangle has been added.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
     }
 
     /// A quad with corners top-left, top-right, bottom-right, bottom-left as
@@ -285,6 +440,7 @@ impl MeshBuilder {
             p: c[i],
             n: normal,
             uv: uv[i],
+            c: Vec3::ONE,
         };
         self.tri(v(0), v(3), v(2), tex);
         self.tri(v(0), v(2), v(1), tex);
@@ -341,11 +497,13 @@ impl MeshBuilder {
             p: centre.extend(z1),
             n: Vec3::Z,
             uv: Vec2::splat(0.5),
+            c: Vec3::ONE,
         };
         let bot_c = Vertex {
             p: centre.extend(z0),
             n: Vec3::NEG_Z,
             uv: Vec2::splat(0.5),
+            c: Vec3::ONE,
         };
         for k in 0..segments {
             let (d0, d1) = (at(k), at(k + 1));
@@ -354,6 +512,7 @@ impl MeshBuilder {
                 p: (centre + d * radius).extend(z),
                 n: d.extend(0.0),
                 uv: Vec2::new(u, vv),
+                c: Vec3::ONE,
             };
             let (tl, tr, br, bl) = (
                 v(d0, z1, u0, 0.0),
@@ -367,6 +526,7 @@ impl MeshBuilder {
                 p: (centre + d * radius).extend(z),
                 n,
                 uv: Vec2::new(0.5 + 0.5 * d.x, 0.5 - 0.5 * flip * d.y),
+                c: Vec3::ONE,
             };
             self.tri(
                 top_c,
@@ -641,251 +801,85 @@ fn tricolor() -> Object {
     b.finish_normalised("tricolor", TRICOLOR_UNIT_M)
 }
 
-/// Resolves a `map_Kd` value relative to the MTL file's directory. Options
-/// such as `-bm 1.0` before the file name are skipped.
-fn resolve_texture(mtl_dir: &Path, value: &str) -> PathBuf {
-    let value = value.trim();
-    let name = if value.starts_with('-') {
-        value.split_whitespace().last().unwrap_or(value)
-    } else {
-        value
-    };
-    mtl_dir.join(name.replace('\\', "/"))
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::noise::hash2;
+    use glam::DVec3;
 
-fn load_obj_impl(path: &Path, up: UpAxis) -> Result<Object, CaptureError> {
-    let file = std::fs::File::open(path).map_err(|e| CaptureError::io(path, e))?;
-    let mut reader = std::io::BufReader::new(file);
-    let dir = path.parent().unwrap_or(Path::new("")).to_path_buf();
-    let mtl_error: RefCell<Option<CaptureError>> = RefCell::new(None);
-    let opts = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, materials) = tobj::load_obj_buf(&mut reader, &opts, |rel| {
-        let mtl_path = dir.join(rel);
-        match tobj::load_mtl(&mtl_path) {
-            Ok((mut mats, map)) => {
-                let mtl_dir = mtl_path.parent().unwrap_or(Path::new("")).to_path_buf();
-                for m in &mut mats {
-                    if let Some(t) = &m.diffuse_texture {
-                        m.diffuse_texture =
-                            Some(resolve_texture(&mtl_dir, t).to_string_lossy().into_owned());
-                    }
-                }
-                Ok((mats, map))
-            }
-            Err(e) => {
-                let reason = match std::fs::File::open(&mtl_path) {
-                    Err(io) => io.to_string(),
-                    Ok(_) => e.to_string(),
-                };
-                mtl_error.borrow_mut().get_or_insert(CaptureError::Mtl {
-                    path: mtl_path.clone(),
-                    obj: path.to_path_buf(),
-                    reason,
-                });
-                Err(e)
+    fn brute_force_diameter(p: &[DVec3]) -> f64 {
+        let mut best = 0.0f64;
+        for (i, a) in p.iter().enumerate() {
+            for b in &p[i + 1..] {
+                best = best.max(a.distance(*b));
             }
         }
-    })
-    .map_err(|e| CaptureError::Obj {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    if let Some(e) = mtl_error.into_inner() {
-        return Err(e);
+        best
     }
-    let materials = materials.map_err(|e| CaptureError::Obj {
-        path: path.to_path_buf(),
-        reason: format!("material library: {e}"),
-    })?;
 
-    let bad = |reason: String| CaptureError::Obj {
-        path: path.to_path_buf(),
-        reason,
-    };
-    let mut b = MeshBuilder::new();
-    let mut tex_ids: HashMap<PathBuf, u32> = HashMap::new();
-    for model in &models {
-        let mesh = &model.mesh;
-        if mesh.indices.is_empty() {
-            continue;
+    #[test]
+    fn diameter_is_the_largest_pairwise_distance() {
+        let r = |i: i32, k: i32| hash2(i, k, 3) as f64 * 2.0 - 1.0;
+        // A box, a sphere (all points at one distance: the pruning's worst
+        // case), a rod and a box away from the origin.
+        let point = |shape: &str, i: i32| {
+            let p = DVec3::new(r(i, 0), r(i, 1), r(i, 2));
+            match shape {
+                "sphere" => p.normalize_or(DVec3::X),
+                "rod" => p * DVec3::new(5.0, 0.1, 0.1),
+                "offset" => p * DVec3::new(1.0, 0.5, 1.0) + DVec3::new(7.0, -3.0, 0.0),
+                _ => p,
+            }
+        };
+        for shape in ["cube", "sphere", "rod", "offset"] {
+            for n in [1, 2, 3, 50, 700] {
+                let p: Vec<DVec3> = (0..n).map(|i| point(shape, i)).collect();
+                let (fast, slow) = (diameter(&p), brute_force_diameter(&p));
+                assert!(
+                    (fast - slow).abs() <= 1e-12 * slow.max(1.0),
+                    "{shape} n={n}: {fast} vs {slow}"
+                );
+            }
         }
-        let mesh_name = if model.name.is_empty() {
-            "(unnamed)"
-        } else {
-            &model.name
-        };
-        if mesh.texcoords.is_empty() {
-            return Err(CaptureError::MissingTexCoords {
-                path: path.to_path_buf(),
-                mesh: mesh_name.to_string(),
-            });
+        assert_eq!(diameter(&[]), 0.0);
+    }
+
+    #[test]
+    fn up_axis_rotation_is_the_proper_rotation_the_loaders_apply() {
+        let axes = [
+            (UpAxis::PosX, Vec3::X),
+            (UpAxis::NegX, Vec3::NEG_X),
+            (UpAxis::PosY, Vec3::Y),
+            (UpAxis::NegY, Vec3::NEG_Y),
+            (UpAxis::PosZ, Vec3::Z),
+            (UpAxis::NegZ, Vec3::NEG_Z),
+        ];
+        for (up, dir) in axes {
+            let r = up.rotation();
+            assert_eq!(r * dir.as_dvec3(), DVec3::Z, "{up}");
+            assert_eq!(r.determinant(), 1.0, "{up}");
+            let p = Vec3::new(0.3, -1.7, 2.5);
+            assert_eq!(r * p.as_dvec3(), up.to_z_up(p).as_dvec3(), "{up}");
         }
-        let missing = |detail: String| CaptureError::MissingTexture {
-            path: path.to_path_buf(),
-            mesh: mesh_name.to_string(),
-            detail,
+    }
+
+    #[test]
+    fn dominant_colours_include_vertex_colours() {
+        // A white texture under a red vertex colour is red.
+        let mut b = MeshBuilder::new();
+        let white = b.texture(Texture::solid([255, 255, 255]));
+        let v = |x: f32, y: f32| Vertex {
+            p: Vec3::new(x, y, 0.0),
+            n: Vec3::Z,
+            uv: Vec2::ZERO,
+            c: Vec3::new(0.8, 0.1, 0.1),
         };
-        let material = match mesh.material_id {
-            Some(id) => materials
-                .get(id)
-                .ok_or_else(|| missing(format!("material #{id} is not defined")))?,
-            None => return Err(missing("no material (usemtl/mtllib)".to_string())),
-        };
-        let tex_path = PathBuf::from(
-            material
-                .diffuse_texture
-                .as_deref()
-                .ok_or_else(|| missing(format!("material '{}' has no map_Kd", material.name)))?,
+        b.tri(v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0), white);
+        let obj = b.finish_normalised("red", 1.0);
+        let c = obj.dominant_colors(1)[0];
+        assert!(
+            (c[0] as i32 - 204).abs() <= 1 && (c[1] as i32 - 26).abs() <= 1,
+            "{c:?}"
         );
-        let tex = match tex_ids.get(&tex_path) {
-            Some(&t) => t,
-            None => {
-                let t = b.texture(load_texture(&tex_path)?);
-                tex_ids.insert(tex_path, t);
-                t
-            }
-        };
-
-        let pos = |i: u32| -> Result<Vec3, CaptureError> {
-            let i = i as usize;
-            mesh.positions
-                .get(3 * i..3 * i + 3)
-                .map(|p| up.to_z_up(Vec3::new(p[0], p[1], p[2])))
-                .ok_or_else(|| bad(format!("vertex index {} out of range", i + 1)))
-        };
-        let uv_at = |i: u32| -> Result<Vec2, CaptureError> {
-            let i = i as usize;
-            mesh.texcoords
-                .get(2 * i..2 * i + 2)
-                // OBJ puts v = 0 at the bottom of the image, we at the top.
-                .map(|t| Vec2::new(t[0], 1.0 - t[1]))
-                .ok_or_else(|| bad(format!("texture coordinate index {} out of range", i + 1)))
-        };
-        let nrm_at = |i: u32| -> Result<Vec3, CaptureError> {
-            let i = i as usize;
-            mesh.normals
-                .get(3 * i..3 * i + 3)
-                .map(|n| up.to_z_up(Vec3::new(n[0], n[1], n[2])).normalize_or_zero())
-                .ok_or_else(|| bad(format!("normal index {} out of range", i + 1)))
-        };
-        let tidx = if mesh.texcoord_indices.is_empty() {
-            &mesh.indices
-        } else {
-            &mesh.texcoord_indices
-        };
-        let has_normals = !mesh.normals.is_empty();
-        let nidx = if mesh.normal_indices.is_empty() {
-            &mesh.indices
-        } else {
-            &mesh.normal_indices
-        };
-        let nfaces = mesh.indices.len() / 3;
-        let mut faces = Vec::with_capacity(nfaces);
-        for f in 0..nfaces {
-            let mut v = [Vertex {
-                p: Vec3::ZERO,
-                n: Vec3::ZERO,
-                uv: Vec2::ZERO,
-            }; 3];
-            for (j, vj) in v.iter_mut().enumerate() {
-                let k = 3 * f + j;
-                vj.p = pos(mesh.indices[k])?;
-                vj.uv = uv_at(
-                    *tidx
-                        .get(k)
-                        .ok_or_else(|| bad("texture coordinate indices missing".into()))?,
-                )?;
-                if has_normals {
-                    vj.n = nrm_at(
-                        *nidx
-                            .get(k)
-                            .ok_or_else(|| bad("normal indices missing".into()))?,
-                    )?;
-                }
-            }
-            faces.push(v);
-        }
-        if !has_normals {
-            smooth_normals(&mut faces, &mesh.indices);
-        }
-        for v in faces {
-            b.tri(v[0], v[1], v[2], tex);
-        }
     }
-    if b.tris.is_empty() {
-        return Err(CaptureError::EmptyMesh {
-            path: path.to_path_buf(),
-        });
-    }
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "mesh".to_string());
-    // OBJ states no unit: metres until the caller says otherwise.
-    Ok(b.finish_normalised(&name, 1.0))
-}
-
-/// Vertex normals for a mesh without them: the area-weighted mean of the
-/// normals of the faces sharing the vertex, leaving out faces that meet at
-/// more than 60 degrees so creases stay sharp.
-fn smooth_normals(faces: &mut [[Vertex; 3]], indices: &[u32]) {
-    let face_n: Vec<Vec3> = faces
-        .iter()
-        .map(|v| (v[1].p - v[0].p).cross(v[2].p - v[0].p))
-        .collect();
-    let nverts = indices.iter().copied().max().map_or(0, |m| m as usize + 1);
-    // Compressed adjacency: the faces around each vertex.
-    let mut start = vec![0usize; nverts + 1];
-    for &i in indices {
-        start[i as usize + 1] += 1;
-    }
-    for i in 0..nverts {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut adj = vec![0usize; indices.len()];
-    for (k, &i) in indices.iter().enumerate() {
-        adj[fill[i as usize]] = k / 3;
-        fill[i as usize] += 1;
-    }
-    let cos_limit = 0.5f32;
-    for (f, face) in faces.iter_mut().enumerate() {
-        let nf = face_n[f].normalize_or_zero();
-        for (j, v) in face.iter_mut().enumerate() {
-            let vi = indices[3 * f + j] as usize;
-            let mut sum = Vec3::ZERO;
-            for &g in &adj[start[vi]..start[vi + 1]] {
-                if face_n[g].normalize_or_zero().dot(nf) >= cos_limit {
-                    sum += face_n[g];
-                }
-            }
-            v.n = if sum.length_squared() > 0.0 {
-                sum.normalize()
-            } else {
-                nf
-            };
-        }
-    }
-}
-
-fn load_texture(path: &Path) -> Result<Texture, CaptureError> {
-    let img = image::open(path).map_err(|e| CaptureError::Texture {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    let rgb = img.to_rgb8();
-    let (w, h) = rgb.dimensions();
-    if w == 0 || h == 0 {
-        return Err(CaptureError::Texture {
-            path: path.to_path_buf(),
-            reason: "empty image".to_string(),
-        });
-    }
-    let data = rgb.pixels().map(|p| p.0).collect();
-    Ok(Texture::new(w, h, data, true))
 }

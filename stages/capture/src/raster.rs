@@ -1,7 +1,8 @@
 //! The triangle rasteriser (z-buffer, perspective-correct texturing,
-//! per-vertex Lambert + ambient shading) and the ray-cast table plane.
+//! per-vertex Lambert + ambient shading times the vertex colour) and the
+//! ray-cast table plane.
 
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec3, Vec3};
 
 use crate::Intrinsics;
 use crate::object::Object;
@@ -40,7 +41,8 @@ struct CamVertex {
     p: DVec3,
     u: f32,
     v: f32,
-    shade: f32,
+    /// Light times the vertex colour, per channel.
+    shade: [f32; 3],
 }
 
 /// A projected vertex; attributes are pre-divided by z for perspective-correct
@@ -52,7 +54,7 @@ struct ScreenVertex {
     iz: f32,
     uz: f32,
     vz: f32,
-    sz: f32,
+    sz: [f32; 3],
 }
 
 fn project(c: CamVertex, k: &Intrinsics) -> ScreenVertex {
@@ -63,7 +65,7 @@ fn project(c: CamVertex, k: &Intrinsics) -> ScreenVertex {
         iz: iz as f32,
         uz: c.u * iz as f32,
         vz: c.v * iz as f32,
-        sz: c.shade * iz as f32,
+        sz: c.shade.map(|s| s * iz as f32),
     }
 }
 
@@ -94,23 +96,35 @@ pub(crate) fn draw_object(
                 n = -n;
             }
             let lambert = n.normalize_or_zero().dot(light_cam).max(0.0) as f32;
+            let shade = AMBIENT + DIFFUSE * lambert;
+            // Times exactly 1.0 for white: textured meshes shade as before.
+            let c = tri[j].c;
             CamVertex {
                 p: pc[j],
                 u: tri[j].uv.x,
                 v: tri[j].uv.y,
-                shade: AMBIENT + DIFFUSE * lambert,
+                shade: [shade * c.x, shade * c.y, shade * c.z],
             }
         });
+        // White triangles interpolate one shade, not three.
+        let coloured = tri.iter().any(|v| v.c != Vec3::ONE);
+        let draw = |frame: &mut Frame, sv: &[ScreenVertex; 3], level: &Level| {
+            if coloured {
+                raster::<true>(frame, sv, level, tex.repeat, mask_value);
+            } else {
+                raster::<false>(frame, sv, level, tex.repeat, mask_value);
+            }
+        };
         if pc.iter().all(|p| p.z >= NEAR) {
             let sv = cv.map(|c| project(c, k));
             let level = tex.level_for_lod(triangle_lod(&sv, &cv, tex));
-            raster(frame, &sv, level, tex.repeat, mask_value);
+            draw(frame, &sv, level);
         } else {
             // Crosses the near plane: clip (rare; objects are far from the camera).
             let (poly, n) = clip_near(&cv);
             for i in 1..n.saturating_sub(1) {
                 let sv = [poly[0], poly[i], poly[i + 1]].map(|c| project(c, k));
-                raster(frame, &sv, tex.level(0), tex.repeat, mask_value);
+                draw(frame, &sv, tex.level(0));
             }
         }
     }
@@ -154,7 +168,7 @@ fn clip_near(v: &[CamVertex; 3]) -> ([CamVertex; 4], usize) {
                 p: a.p + (b.p - a.p) * t,
                 u: a.u + (b.u - a.u) * tf,
                 v: a.v + (b.v - a.v) * tf,
-                shade: a.shade + (b.shade - a.shade) * tf,
+                shade: std::array::from_fn(|c| a.shade[c] + (b.shade[c] - a.shade[c]) * tf),
             };
             n += 1;
         }
@@ -191,7 +205,15 @@ impl Edge {
 }
 
 /// Scan-converts one triangle. Pixel centres are at integer coordinates.
-fn raster(frame: &mut Frame, v: &[ScreenVertex; 3], level: &Level, repeat: bool, mask_value: u8) {
+/// `COLOURED`: the three shade channels differ (a vertex-coloured
+/// triangle); else channel 0 stands for all three.
+fn raster<const COLOURED: bool>(
+    frame: &mut Frame,
+    v: &[ScreenVertex; 3],
+    level: &Level,
+    repeat: bool,
+    mask_value: u8,
+) {
     let (a, mut b, mut c) = (v[0], v[1], v[2]);
     let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     if area.is_nan() || area.abs() <= 1e-9 {
@@ -249,12 +271,20 @@ fn raster(frame: &mut Frame, v: &[ScreenVertex; 3], level: &Level, repeat: bool,
                     let z = 1.0 / iz;
                     let u = (b0 * a.uz + b1 * b.uz + b2 * c.uz) * z;
                     let vv = (b0 * a.vz + b1 * b.vz + b2 * c.vz) * z;
-                    let s = (b0 * a.sz + b1 * b.sz + b2 * c.sz) * z;
+                    let s0 = (b0 * a.sz[0] + b1 * b.sz[0] + b2 * c.sz[0]) * z;
+                    let (s1, s2) = if COLOURED {
+                        (
+                            (b0 * a.sz[1] + b1 * b.sz[1] + b2 * c.sz[1]) * z,
+                            (b0 * a.sz[2] + b1 * b.sz[2] + b2 * c.sz[2]) * z,
+                        )
+                    } else {
+                        (s0, s0)
+                    };
                     let t = level.sample(u, vv, repeat);
                     let o = idx * 3;
-                    frame.rgb[o] = (t[0] * s + 0.5).min(255.0) as u8;
-                    frame.rgb[o + 1] = (t[1] * s + 0.5).min(255.0) as u8;
-                    frame.rgb[o + 2] = (t[2] * s + 0.5).min(255.0) as u8;
+                    frame.rgb[o] = (t[0] * s0 + 0.5).min(255.0) as u8;
+                    frame.rgb[o + 1] = (t[1] * s1 + 0.5).min(255.0) as u8;
+                    frame.rgb[o + 2] = (t[2] * s2 + 0.5).min(255.0) as u8;
                     frame.mask[idx] = mask_value;
                 }
             }
