@@ -27,6 +27,17 @@ pub fn fails(estimate: (f32, f32), truth: (f32, f32)) -> bool {
     !failure_rule().reliable(estimate, truth)
 }
 
+/// Whether estimate (θ, φ, roll) fails against the truth, degrees: the
+/// paper's rule, and a roll off by more than its φ tolerance (a seed
+/// turned about the optical axis by as much as the rule lets φ err is as
+/// wrong). The estimate's roll is 0 when the pose stage does not search
+/// it, so a rolled view fails unless the search found the roll.
+pub fn fails_with_roll(estimate: [f32; 3], truth: [f32; 3]) -> bool {
+    let d = (estimate[2] - truth[2]).rem_euclid(360.0);
+    fails((estimate[0], estimate[1]), (truth[0], truth[1]))
+        || d.min(360.0 - d) > failure_rule().phi_deg
+}
+
 /// Whether errors (|Δθ|, |Δφ|), degrees, fail the paper's rule.
 pub fn errors_fail((dtheta, dphi): (f64, f64)) -> bool {
     let rule = failure_rule();
@@ -191,6 +202,14 @@ mod tests {
         assert!(fails((60.0, 350.0), (60.0, 10.5)));
         assert!(!fails((60.0, 350.0), (60.0, 9.5)));
         assert!(fails((f32::NAN, 0.0), (60.0, 0.0)));
+    }
+
+    #[test]
+    fn a_roll_beyond_the_phi_tolerance_fails() {
+        assert!(!fails_with_roll([60.0, 10.0, 0.0], [60.0, 10.0, 19.0]));
+        assert!(fails_with_roll([60.0, 10.0, 0.0], [60.0, 10.0, 21.0]));
+        assert!(!fails_with_roll([60.0, 10.0, 170.0], [60.0, 10.0, -170.0]));
+        assert!(fails_with_roll([60.0, 40.0, 0.0], [60.0, 10.0, 0.0]));
     }
 
     #[test]

@@ -389,7 +389,7 @@ fn train(
 ) -> Result<ViewDatabase, EvalError> {
     let mut db = train::train_rendered(object, config, &RenderedTraining::default())?;
     let (choice, model, _) =
-        train::choose_confidence_input(&db, object, scenes, DEFAULT_DISTANCE, 0)?;
+        train::choose_confidence_input(&db, object, scenes, DEFAULT_DISTANCE, 0.0, 0)?;
     tracing::info!("{choice}");
     model.store(&mut db);
     Ok(db)

@@ -171,6 +171,7 @@ pub fn table2(
         &object,
         DEFAULT_CONFIDENCE_SCENES,
         DEFAULT_DISTANCE,
+        0.0,
         0,
     )?;
     model.store(&mut db);

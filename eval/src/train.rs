@@ -77,6 +77,14 @@ pub struct RenderedTraining {
     pub distance: f64,
     /// Seed of the views and the scene.
     pub seed: u64,
+    /// Largest camera roll of the confidence-training (and validation)
+    /// scenes, degrees: 0 (the default) keeps them upright; above 0 every
+    /// other scene rolls uniformly within it, its estimate labelled by the
+    /// roll too ([`protocol::fails_with_roll`]), so the network learns to
+    /// reject what a rolled camera makes without the pose stage's roll
+    /// search (a seed turned by the roll), at a cost in upright
+    /// acceptance (docs/accuracy.md).
+    pub confidence_roll_deg: f64,
 }
 
 impl Default for RenderedTraining {
@@ -87,6 +95,7 @@ impl Default for RenderedTraining {
             background: Background::default(),
             distance: DEFAULT_DISTANCE,
             seed: 0,
+            confidence_roll_deg: 0.0,
         }
     }
 }
@@ -168,6 +177,7 @@ pub fn confidence_samples(
     per_background: usize,
     seed_base: u64,
     distance: f64,
+    max_roll_deg: f64,
 ) -> Result<Vec<ConfidenceSample>, EvalError> {
     let params = acch_confidence::FeatureParams::default();
     let mut samples = Vec::new();
@@ -175,7 +185,7 @@ pub fn confidence_samples(
         let seed = seed_base + k as u64;
         let background: Background = name.parse()?;
         let renderer = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
-        let views = confidence_views(per_background, distance, seed)?;
+        let views = confidence_views(per_background, distance, seed, max_roll_deg)?;
         let renders = protocol::render_views(&renderer, &views, seed, name);
         let (w, h) = renders.first().map_or((640, 480), |r| r.image.dimensions());
         let chunk: Vec<ConfidenceSample> = renders
@@ -200,9 +210,13 @@ pub fn confidence_samples(
                     Ok(Some(ConfidenceSample {
                         features: Kind::Features.input(&params, resp, slices, views)?,
                         response: Kind::Response.input(&params, resp, slices, views)?,
-                        reliable: !protocol::fails(
-                            (e.theta_deg, e.phi_deg),
-                            (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
+                        reliable: !protocol::fails_with_roll(
+                            [e.theta_deg, e.phi_deg, e.roll_deg],
+                            [
+                                r.truth.theta_deg as f32,
+                                r.truth.phi_deg as f32,
+                                r.truth.roll_deg as f32,
+                            ],
                         ),
                     }))
                 },
@@ -216,15 +230,28 @@ pub fn confidence_samples(
     Ok(samples)
 }
 
-/// `n` poses with θ uniform in [CONFIDENCE_MIN_THETA_DEG, 90], φ in [0, 360).
-fn confidence_views(n: usize, distance: f64, seed: u64) -> Result<Vec<ViewPose>, EvalError> {
+/// `n` poses with θ uniform in [CONFIDENCE_MIN_THETA_DEG, 90], φ in [0,
+/// 360); with `max_roll_deg` > 0 every other one rolled uniformly within
+/// ±`max_roll_deg` (with 0 the poses are those of upright training,
+/// draw for draw).
+fn confidence_views(
+    n: usize,
+    distance: f64,
+    seed: u64,
+    max_roll_deg: f64,
+) -> Result<Vec<ViewPose>, EvalError> {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     (0..n)
-        .map(|_| {
+        .map(|i| {
             let theta = rng.random_range(CONFIDENCE_MIN_THETA_DEG..=90.0);
             let phi = rng.random_range(0.0..360.0);
-            Ok(ViewPose::new(theta, phi, distance)?)
+            let view = ViewPose::new(theta, phi, distance)?;
+            if max_roll_deg <= 0.0 {
+                return Ok(view);
+            }
+            let roll = rng.random_range(-max_roll_deg..=max_roll_deg);
+            Ok(view.with_roll(if i % 2 == 1 { roll } else { 0.0 })?)
         })
         .collect()
 }
@@ -333,6 +360,7 @@ pub fn choose_confidence_input(
     object: &Arc<Object>,
     per_background: usize,
     distance: f64,
+    max_roll_deg: f64,
     seed: u64,
 ) -> Result<
     (
@@ -342,9 +370,10 @@ pub fn choose_confidence_input(
     ),
     EvalError,
 > {
-    let train = confidence_samples(db, object, per_background, CONFIDENCE_SEED_BASE, distance)?;
-    let validation =
-        confidence_samples(db, object, per_background, VALIDATION_SEED_BASE, distance)?;
+    let samples =
+        |base| confidence_samples(db, object, per_background, base, distance, max_roll_deg);
+    let train = samples(CONFIDENCE_SEED_BASE)?;
+    let validation = samples(VALIDATION_SEED_BASE)?;
     let labels: Vec<bool> = validation.iter().map(|s| s.reliable).collect();
     let mut models = Vec::new();
     let mut scores = Vec::new();
@@ -442,15 +471,27 @@ pub fn train_object(
     };
     match input {
         ConfidenceInput::Auto => {
-            let (choice, model, _) =
-                choose_confidence_input(&db, object, scenes, training.distance, training.seed)?;
+            let (choice, model, _) = choose_confidence_input(
+                &db,
+                object,
+                scenes,
+                training.distance,
+                training.confidence_roll_deg,
+                training.seed,
+            )?;
             tracing::info!("{choice}");
             model.store(&mut db);
             Ok((db, Some(choice)))
         }
         ConfidenceInput::Only(kind) => {
-            let samples =
-                confidence_samples(&db, object, scenes, CONFIDENCE_SEED_BASE, training.distance)?;
+            let samples = confidence_samples(
+                &db,
+                object,
+                scenes,
+                CONFIDENCE_SEED_BASE,
+                training.distance,
+                training.confidence_roll_deg,
+            )?;
             let reliable = samples.iter().filter(|s| s.reliable).count();
             tracing::info!(
                 "confidence: {} estimates from {} scenes, {} reliable, {} not",
@@ -615,6 +656,22 @@ mod tests {
         // The protocols' test scenes use small seeds (`--seed`, default 1)
         // and their frame seeds.
         assert!(training.start > 1000);
+    }
+
+    #[test]
+    fn rolled_confidence_scenes_roll_every_other_view_and_none_by_default() {
+        let upright = confidence_views(200, 5.0, 3, 0.0).unwrap();
+        assert!(upright.iter().all(|v| v.roll_deg == 0.0));
+        let rolled = confidence_views(200, 5.0, 3, 45.0).unwrap();
+        assert!(rolled.iter().step_by(2).all(|v| v.roll_deg == 0.0));
+        let odd: Vec<f64> = rolled
+            .iter()
+            .skip(1)
+            .step_by(2)
+            .map(|v| v.roll_deg)
+            .collect();
+        assert!(odd.iter().all(|r| r.abs() <= 45.0));
+        assert!(odd.iter().any(|r| *r > 30.0) && odd.iter().any(|r| *r < -30.0));
     }
 
     #[test]
