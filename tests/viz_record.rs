@@ -80,10 +80,16 @@ fn recordings_open_in_the_reference_tools_and_replay_to_the_same_poses() {
     );
     assert!(stderr.contains("acch viz summary"), "no viewer summary");
 
-    // The reference MCAP reader, CRCs validated, every channel.
+    // The reference MCAP reader, CRCs validated, every channel, every
+    // protobuf message decoded against its schema, and every message path
+    // of the Foxglove layout resolved in this recording.
     let check = Command::new("python3")
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/mcap_check.py"))
         .arg(&mcap_a)
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/docs/foxglove-layout.json"
+        ))
         .output()
         .unwrap();
     assert!(
@@ -94,15 +100,60 @@ fn recordings_open_in_the_reference_tools_and_replay_to_the_same_poses() {
     let c: Value = serde_json::from_slice(&check.stdout).unwrap();
     eprintln!("mcap_check: {c}");
     let counts = &c["counts"];
-    for topic in ["/camera/image", "/acch/frame", "/acch/result"] {
+    for topic in [
+        "/camera/image",
+        "/camera/calibration",
+        "/acch/frame",
+        "/acch/result",
+        "/acch/overlay",
+        "/acch/latency",
+        "/tf",
+    ] {
         assert_eq!(counts[topic], frames, "{topic}: {c}");
         assert_eq!(c["statistics"][topic], frames, "{topic}: {c}");
     }
+    assert_eq!(counts["/acch/mask/overlay"], a["found"], "{c}");
+    for (topic, n) in c["decoded"].as_object().unwrap() {
+        assert_eq!(n, &counts[topic.as_str()], "{topic} not all decoded: {c}");
+    }
+    assert_eq!(c["decoded"]["/acch/overlay"], frames, "{c}");
+    // Detection and ROI boxes (line loops), axes and the mask (line lists).
+    let overlay = &c["overlay"];
+    assert!(
+        overlay["/acch/overlay points type 2"].as_u64() > Some(0),
+        "{c}"
+    );
+    assert!(
+        overlay["/acch/overlay points type 4"].as_u64() > Some(0),
+        "{c}"
+    );
+    assert!(
+        overlay["/acch/mask/overlay points type 4"].as_u64() > Some(0),
+        "{c}"
+    );
+    assert_eq!(
+        c["child_frames"],
+        serde_json::json!(["camera_optical", "fused", "seed", "truth"]),
+        "{c}"
+    );
+    assert_eq!(c["calibration"]["K"][0], c["calibration"]["P"][0], "{c}");
+    let layout = &c["layout"];
+    assert_eq!(layout["unresolved"], serde_json::json!([]), "{c}");
+    assert!(layout["paths"].as_u64() >= Some(20), "{c}");
     assert_eq!(counts["/acch/seed"], a["seeds"], "{c}");
     assert_eq!(counts["/acch/mask"], a["found"], "{c}");
     assert_eq!(counts["/acch/response"], a["estimated"], "{c}");
     assert_eq!(c["schemas"]["/camera/image"][0], "foxglove.RawImage", "{c}");
     assert_eq!(c["schemas"]["/acch/seed"][0], "foxglove.PoseInFrame", "{c}");
+    assert_eq!(
+        c["schemas"]["/acch/overlay"][0], "foxglove.ImageAnnotations",
+        "{c}"
+    );
+    assert_eq!(c["schemas"]["/tf"][0], "foxglove.FrameTransforms", "{c}");
+    assert_eq!(
+        c["schemas"]["/camera/calibration"][0], "foxglove.CameraCalibration",
+        "{c}"
+    );
     assert_eq!(c["schemas"]["/acch/result"][1], "jsonschema", "{c}");
     assert!(c["data_section_crc"].as_u64().unwrap() != 0, "{c}");
     let total: u64 = counts

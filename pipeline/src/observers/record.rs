@@ -1,18 +1,21 @@
 //! The recorder: every frame, region, response, result and seed of a run
 //! into MCAP (`acch run --record FILE.mcap`), as Foxglove protobuf and JSON
-//! messages ([`acch_record`]), or (`--record-format ros2`) a rosbag2 bag of
+//! messages ([`acch_record`]), with what a Foxglove layout shows beside
+//! them (image overlays, pose transforms, latencies), or (`--record-format ros2`) a rosbag2 bag of
 //! the run's ROS 2 topics ([`crate::ros2::Ros2Bag`]) that `ros2 bag play`
 //! replays.
 
+use super::viz::pose_of;
 use crate::PipelineConfig;
 use crate::frame::FrameHeader;
 use crate::json::ResultJson;
 use crate::node::{NodeError, announce_ready};
 use crate::observe::{Observe, ObserveError, Observer, Streams, lower_priority};
 use crate::stages::{Posed, RegionPayload, ResponsePayload, Seeded, Segmented};
-use crate::wire::Hop;
+use crate::wire::{Hop, StageId};
 use acch_ipc::Control;
-use acch_record::{FrameInfo, FrameTruth, Recorder};
+use acch_record::{FrameInfo, FrameTruth, LatencyJson, Overlay, Recorder};
+use acch_viz::{ObjectSize, Pose, project_axes};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -52,6 +55,8 @@ pub struct Recording {
     /// The frame-sized mask of the current region, pasted from its crop.
     mask: Vec<u8>,
     response: Vec<f32>,
+    /// How long the projected axes are drawn.
+    size: ObjectSize,
 }
 
 impl Recording {
@@ -67,7 +72,16 @@ impl Recording {
             views,
             mask: Vec::new(),
             response: Vec::with_capacity(views),
+            size: ObjectSize::FromDistance,
         })
+    }
+
+    /// Tells the recording the θ of every database view (database order;
+    /// the responses then mark the θ slices) and the object's size (the
+    /// length of the axes drawn on the image).
+    pub fn describe(&mut self, view_thetas: &[f32], size: ObjectSize) {
+        self.rec.set_view_thetas(view_thetas);
+        self.size = size;
     }
 
     /// Completes the file (its counts as metadata, summary, footer) and
@@ -151,11 +165,75 @@ impl Observe for Recording {
         let (seq, t) = (e.frame.sequence, e.trail.captured_ns);
         self.rec.result(seq, t, &ResultJson::of(&self.object, m))?;
         self.s.results += 1;
-        if let Some(seed) = m.seed().filter(|_| m.accepted()) {
-            self.rec
-                .seed(seq, t, seed.translation, seed.rotation_xyzw)?;
+        let seed = m.seed().filter(|_| m.accepted()).map(|s| Pose {
+            translation: s.translation,
+            rotation_xyzw: s.rotation_xyzw,
+        });
+        if let Some(s) = &seed {
+            self.rec.seed(seq, t, s.translation, s.rotation_xyzw)?;
             self.s.seeds += 1;
         }
+        let truth = e.frame.truth.get().map(|t| pose_of(&t.camera_from_object));
+        let fused = m
+            .seeding
+            .fused
+            .get()
+            .map(|f| pose_of(&f.camera_from_object));
+        // For viewers: the result drawn on the image, the poses as frames.
+        let k = e.frame.intrinsics.to_array();
+        let axes = |p: &Option<Pose>| {
+            p.as_ref()
+                .and_then(|p| project_axes(k, p, self.size.radius(p)))
+        };
+        let rect = |r: [u32; 4]| r.map(f64::from);
+        let caption = match (m.pose().done(), m.rating().verdict()) {
+            (Some(p), Some(v)) => format!(
+                "θ {:.1}° φ {:.1}°  confidence {:.3} {} {:.2}: {}",
+                p.theta_deg,
+                p.phi_deg,
+                v.confidence,
+                if v.accepted { "≥" } else { "<" },
+                v.threshold,
+                m.rating().state()
+            ),
+            (Some(p), None) => format!(
+                "θ {:.1}° φ {:.1}°  {}",
+                p.theta_deg,
+                p.phi_deg,
+                m.rating().state()
+            ),
+            (None, _) => "no estimate".into(),
+        };
+        let overlay = Overlay {
+            window: m.detection().done().map(|w| rect(w.window.to_array())),
+            roi: m.region().done().map(|r| rect(r.to_array())),
+            seed_axes: axes(&seed),
+            truth_axes: axes(&truth),
+            caption,
+        };
+        self.rec.overlay(seq, t, &overlay)?;
+        let poses: Vec<(&str, [f64; 3], [f64; 4])> =
+            [("seed", seed), ("fused", fused), ("truth", truth)]
+                .into_iter()
+                .filter_map(|(name, p)| p.map(|p| (name, p.translation, p.rotation_xyzw)))
+                .collect();
+        self.rec.transforms(seq, t, &poses)?;
+        let ms = |ns: u64| ns as f64 / 1e6;
+        let latency = LatencyJson {
+            sequence: seq,
+            since_capture_ms: StageId::ALL
+                .iter()
+                .map(|s| {
+                    let published = e.trail.of(*s).published_ns;
+                    (s.name().to_owned(), ms(published.saturating_sub(t)))
+                })
+                .collect(),
+            stage_ms: StageId::ALL
+                .iter()
+                .map(|s| (s.name().to_owned(), ms(e.trail.process_ns(*s))))
+                .collect(),
+        };
+        self.rec.latency(seq, t, &latency)?;
         Ok(())
     }
 }
@@ -182,7 +260,18 @@ impl RunRecording {
             tracing::info!("record: a rosbag2 bag in {}", dir.display());
             Format::Ros2(Box::new(bag))
         } else {
-            Format::Foxglove(Box::new(Recording::create(path, &cfg.object, views)?))
+            let mut r = Recording::create(path, &cfg.object, views)?;
+            // The views' θ mark the slices of each recorded response; the
+            // database was read to start the run, so this read succeeds
+            // unless the file changed since (then the marks are left out).
+            match cfg.database() {
+                Ok(db) => {
+                    let thetas: Vec<f32> = db.views().iter().map(|v| v.theta_deg).collect();
+                    r.describe(&thetas, object_size(cfg));
+                }
+                Err(e) => tracing::warn!("record: no θ slice marks in the responses: {e}"),
+            }
+            Format::Foxglove(Box::new(r))
         };
         Ok(RunRecording {
             format,
@@ -288,6 +377,14 @@ pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
         serde_json::to_string(&s).expect("counts serialise")
     );
     Ok(s)
+}
+
+/// The configured object's size: its real radius, or the built-in
+/// object's (a mesh is loaded to measure it).
+pub(crate) fn object_size(cfg: &PipelineConfig) -> ObjectSize {
+    cfg.object_radius_m
+        .or_else(|| cfg.scene_object().ok().map(|o| o.radius_m()))
+        .map_or(ObjectSize::FromDistance, ObjectSize::RadiusM)
 }
 
 /// Unix-epoch time minus CLOCK_MONOTONIC, ns: maps capture times to the

@@ -3,7 +3,7 @@
 //! subscribes to the frames and to the segmentation (mask), pose (response)
 //! and seeding (final result) services; nothing waits for it. When it falls
 //! behind, iceoryx2 drops the oldest samples queued for it; the gaps are
-//! counted, logged to `viz/dropped` and reported at exit.
+//! counted, logged to `plot/dropped` and reported at exit.
 
 use crate::PipelineConfig;
 use crate::frame::FrameHeader;
@@ -11,7 +11,7 @@ use crate::node::{NodeError, announce_ready};
 use crate::observe::{Gaps, Observe, ObserveError, Observer, Streams, lower_priority};
 use crate::stages::{Posed, RegionPayload, ResponsePayload, Seeded, Segmented};
 use crate::wire::{Hop, StageId};
-use acch_viz::{Logger, Observation, Sink, Truth};
+use acch_viz::{Fused, Logger, ObjectSize, Observation, Pose, Rating, Sink, Truth};
 use glam::{DAffine3, DQuat};
 use serde::Serialize;
 use std::time::Duration;
@@ -125,12 +125,29 @@ fn log_items(
     let _ = done.send(());
 }
 
+/// A column-major 3x4 `camera_from_object` as a pose.
+pub(super) fn pose_of(camera_from_object: &[f64; 12]) -> Pose {
+    let a = DAffine3::from_cols_array(camera_from_object);
+    Pose {
+        translation: a.translation.to_array(),
+        rotation_xyzw: DQuat::from_mat3(&a.matrix3).normalize().to_array(),
+    }
+}
+
 /// The viewer's view of a final result.
 fn observation(m: &Seeded) -> Observation {
     let e = m.envelope();
-    let stage_ms = StageId::ALL
+    // Captured -> each stage published: cumulative, so the lines stack.
+    let since_capture_ms = StageId::ALL
         .iter()
-        .map(|s| (s.name(), e.trail.process_ns(*s) as f64 / 1e6))
+        .map(|s| {
+            let ns = e
+                .trail
+                .of(*s)
+                .published_ns
+                .saturating_sub(e.trail.captured_ns);
+            (s.name(), ns as f64 / 1e6)
+        })
         .collect();
     let wide = |r: [u32; 4]| r.map(u64::from);
     Observation {
@@ -142,22 +159,25 @@ fn observation(m: &Seeded) -> Observation {
             .pose()
             .done()
             .map(|p| [p.theta_deg as f64, p.phi_deg as f64]),
-        confidence: m.rating().verdict().map(|v| v.confidence as f64),
-        seed: m
-            .seed()
-            .filter(|_| m.accepted())
-            .map(|s| (s.translation, s.rotation_xyzw)),
-        truth: e.frame.truth.get().map(|t| {
-            let a = DAffine3::from_cols_array(&t.camera_from_object);
-            Truth {
-                theta_deg: t.theta_deg,
-                phi_deg: t.phi_deg,
-                translation: a.translation.to_array(),
-                rotation_xyzw: DQuat::from_mat3(&a.matrix3).normalize().to_array(),
-            }
+        rating: m.rating().verdict().map(|v| Rating {
+            confidence: v.confidence as f64,
+            threshold: v.threshold as f64,
+            accepted: v.accepted,
         }),
-        stage_ms,
-        end_to_end_ms: e.trail.end_to_end_ns() as f64 / 1e6,
+        seed: m.seed().filter(|_| m.accepted()).map(|s| Pose {
+            translation: s.translation,
+            rotation_xyzw: s.rotation_xyzw,
+        }),
+        fused: m.seeding.fused.get().map(|f| Fused {
+            view_deg: f.view_deg,
+            pose: pose_of(&f.camera_from_object),
+        }),
+        truth: e.frame.truth.get().map(|t| Truth {
+            theta_deg: t.theta_deg,
+            phi_deg: t.phi_deg,
+            pose: pose_of(&t.camera_from_object),
+        }),
+        since_capture_ms,
     }
 }
 
@@ -168,8 +188,6 @@ pub struct Viewing {
     /// Views of the database (responses have one value each).
     views: usize,
     tx: std::sync::mpsc::SyncSender<Item>,
-    /// Samples missed before this pass's results (frames dropped included).
-    missed_before: u64,
     /// This pass's last result: sequence, capture time.
     last: Option<(u64, u64)>,
 }
@@ -183,13 +201,6 @@ fn queue(tx: &std::sync::mpsc::SyncSender<Item>, item: Item, dropped: &mut u64) 
             *dropped += 1;
             false
         }
-    }
-}
-
-impl Viewing {
-    /// Every sample missed so far, frames the queue had no room for included.
-    fn missed(&self, gaps: &[Gaps; 4]) -> u64 {
-        gaps.iter().map(|g| g.missed).sum::<u64>() + self.s.frames_queue_full
     }
 }
 
@@ -240,8 +251,7 @@ impl Observe for Viewing {
         Ok(())
     }
 
-    fn results_start(&mut self, gaps: &[Gaps; 4]) {
-        self.missed_before = self.missed(gaps);
+    fn results_start(&mut self, _gaps: &[Gaps; 4]) {
         self.last = None;
     }
 
@@ -253,12 +263,10 @@ impl Observe for Viewing {
         Ok(())
     }
 
-    /// Logs the dropped count when it grew this pass (and on the first
-    /// frame, so the series starts at 0).
+    /// Logs the dropped count after every pass with a result: one scalar,
+    /// so the plot spans the run.
     fn results_end(&mut self, gaps: &[Gaps; 4]) -> Result<(), ObserveError> {
-        if let Some((sequence, capture_ns)) = self.last
-            && (self.missed(gaps) != self.missed_before || sequence == 0)
-        {
+        if let Some((sequence, capture_ns)) = self.last {
             let dropped = gaps[0].missed + self.s.frames_queue_full;
             queue(
                 &self.tx,
@@ -276,14 +284,25 @@ impl Observe for Viewing {
 
 impl Viewing {
     /// A viewer logging to `sink` (`save:FILE.rrd`, `spawn`, `connect:URL`)
-    /// for a database whose views are `views` (θ, φ degrees); rerun's
-    /// logging runs on a thread of its own behind a bounded queue.
+    /// for a database whose views are `views` (θ, φ degrees), the object
+    /// drawn at a size read off its distance ([`ObjectSize::FromDistance`]).
     pub fn open(
         sink_arg: &str,
         views: &[(f32, f32)],
     ) -> Result<(Self, ViewerThread), ObserveError> {
+        Self::open_sized(sink_arg, views, ObjectSize::FromDistance)
+    }
+
+    /// As [`Viewing::open`], the object drawn at `size`; rerun's logging
+    /// runs on a thread of its own behind a bounded queue.
+    pub fn open_sized(
+        sink_arg: &str,
+        views: &[(f32, f32)],
+        size: ObjectSize,
+    ) -> Result<(Self, ViewerThread), ObserveError> {
         let sink = Sink::parse(sink_arg)?;
-        let log = Logger::new(sink.open("acch")?, views)?;
+        let stages = StageId::ALL.map(StageId::name);
+        let log = Logger::new(sink.open("acch")?, views, size, &stages)?;
         // rerun's log() blocks when its sink cannot keep up (a stalled or
         // absent viewer): it runs on its own thread behind a bounded queue,
         // and what does not fit is dropped and counted here.
@@ -299,7 +318,6 @@ impl Viewing {
                 },
                 views: views.len(),
                 tx,
-                missed_before: 0,
                 last: None,
             },
             ViewerThread { logger, done_rx },
@@ -356,7 +374,9 @@ pub fn run_viz(cfg: &PipelineConfig) -> Result<VizSummary, NodeError> {
     let views = super::view_angles(&cfg.database()?);
     let ipc = cfg.ipc("viz")?;
     let mut streams = Streams::open(&ipc, cfg.frame_history)?;
-    let (mut out, thread) = Viewing::open(&sink_arg, &views)?;
+    // The configured object's real radius sizes its box and axes.
+    let size = super::record::object_size(cfg);
+    let (mut out, thread) = Viewing::open_sized(&sink_arg, &views, size)?;
     announce_ready(&ipc, Observer::Viz.ready_id())?;
     streams.observe_until_stopped(&ipc, &mut out)?;
     let s = out.finish(thread, streams.missed());

@@ -7,10 +7,18 @@
 //! | --- | --- | --- |
 //! | `/camera/image` | `foxglove.RawImage` (rgb8) | protobuf |
 //! | `/acch/frame` | `acch.Frame`: sequence, capture time, intrinsics, truth | JSON |
-//! | `/acch/mask` | `foxglove.RawImage` (mono8, 0 = background, 1 = object) | protobuf |
+//! | `/acch/mask` | `foxglove.RawImage` (mono8, 0 = background, 255 = object) | protobuf |
 //! | `/acch/response` | `acch.Response`: match value per database view | JSON |
 //! | `/acch/result` | `acch.Result`: the result published on zenoh | JSON |
 //! | `/acch/seed` | `foxglove.PoseInFrame` (camera_from_object) | protobuf |
+//! | `/camera/calibration` | `foxglove.CameraCalibration` (the frame's intrinsics) | protobuf |
+//! | `/acch/overlay` | `foxglove.ImageAnnotations`: detection window, ROI, seed and true axes projected | protobuf |
+//! | `/acch/mask/overlay` | `foxglove.ImageAnnotations`: the mask as translucent row runs | protobuf |
+//! | `/tf` | `foxglove.FrameTransforms`: `seed`, `fused`, `truth` in `camera_optical` | protobuf |
+//! | `/acch/latency` | `acch.Latency`: ms from capture to each stage's publishing | JSON |
+//!
+//! The overlays, transforms and latencies are for viewers (the Foxglove
+//! layout, `docs/foxglove-layout.json`); a replay reads only frames.
 //!
 //! Pixels are written once into the record (no base64, no compression): the
 //! recorder runs beside the pipeline on the same cores and must stay cheap.
@@ -18,11 +26,11 @@
 pub mod proto;
 mod schema;
 
-pub use schema::{FrameInfo, FrameTruth, ResponseJson};
+pub use schema::{FrameInfo, FrameTruth, LatencyJson, ResponseJson};
 
 use mcap::sans_io::LinearReaderOptions;
 use mcap::{McapError, WriteOptions, records::MessageHeader};
-use proto::RawImageHeader;
+use proto::{FrameTransform, PointsAnnotation, PointsKind, RawImageHeader, TextAnnotation};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -41,8 +49,24 @@ pub const TOPIC_RESPONSE: &str = "/acch/response";
 pub const TOPIC_RESULT: &str = "/acch/result";
 /// Topic of the 6-DOF seeds.
 pub const TOPIC_SEED: &str = "/acch/seed";
+/// Topic of the camera calibration (one per frame).
+pub const TOPIC_CALIBRATION: &str = "/camera/calibration";
+/// Topic of the image overlay: detection, ROI, projected axes.
+pub const TOPIC_OVERLAY: &str = "/acch/overlay";
+/// Topic of the mask overlay.
+pub const TOPIC_MASK_OVERLAY: &str = "/acch/mask/overlay";
+/// Topic of the pose transforms.
+pub const TOPIC_TF: &str = "/tf";
+/// Topic of the per-stage latencies.
+pub const TOPIC_LATENCY: &str = "/acch/latency";
 /// The camera's optical frame (OpenCV: x right, y down, z forward).
 pub const CAMERA_FRAME: &str = "camera_optical";
+/// The camera's body frame (ROS: x forward, y left, z up), parent of
+/// [`CAMERA_FRAME`] on `/tf`: a 3-D viewer following it has z up.
+pub const CAMERA_BODY_FRAME: &str = "camera";
+/// camera_from_optical rotation x, y, z, w: optical z (forward) is body x,
+/// optical x (right) body -y, optical y (down) body -z.
+pub const BODY_FROM_OPTICAL_XYZW: [f64; 4] = [-0.5, 0.5, -0.5, 0.5];
 
 /// The iceoryx2 control event the `record` process sends after writing each
 /// final result; a free-running replay waits for it so a replay recorded
@@ -97,6 +121,26 @@ struct Channels {
     response: u16,
     result: u16,
     seed: u16,
+    calibration: u16,
+    overlay: u16,
+    mask_overlay: u16,
+    tf: u16,
+    latency: u16,
+}
+
+/// What the image overlay of a result shows (pixels, image coordinates).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overlay {
+    /// Detection window x, y, width, height.
+    pub window: Option<[f64; 4]>,
+    /// Segmented region's box x, y, width, height.
+    pub roi: Option<[f64; 4]>,
+    /// The seed's origin and x, y, z axis tips, projected.
+    pub seed_axes: Option<[[f64; 2]; 4]>,
+    /// The true pose's, likewise.
+    pub truth_axes: Option<[[f64; 2]; 4]>,
+    /// A line of text at the top left (estimate, rating).
+    pub caption: String,
 }
 
 /// Writes one run into an MCAP file. Every `write_*` call reuses one
@@ -107,6 +151,10 @@ pub struct Recorder<W: Write + Seek = BufWriter<File>> {
     scratch: Vec<u8>,
     path: PathBuf,
     epoch_offset_ns: u64,
+    /// 1 at the first view of each θ slice (database order), else 0.
+    slice_edges: Vec<u8>,
+    /// Row runs of the current mask.
+    runs: Vec<[f64; 2]>,
 }
 
 impl Recorder<BufWriter<File>> {
@@ -153,15 +201,39 @@ impl<W: Write + Seek> Recorder<W> {
                 &proto::pose_in_frame_descriptor_set(),
             )
             .map_err(e)?;
+        let annotations = out
+            .add_schema(
+                "foxglove.ImageAnnotations",
+                "protobuf",
+                &proto::image_annotations_descriptor_set(),
+            )
+            .map_err(e)?;
+        let transforms = out
+            .add_schema(
+                "foxglove.FrameTransforms",
+                "protobuf",
+                &proto::frame_transforms_descriptor_set(),
+            )
+            .map_err(e)?;
+        let calibration = out
+            .add_schema(
+                "foxglove.CameraCalibration",
+                "protobuf",
+                &proto::camera_calibration_descriptor_set(),
+            )
+            .map_err(e)?;
         let json = |out: &mut mcap::Writer<W>, name: &str, schema: &str| {
             out.add_schema(name, "jsonschema", schema.as_bytes())
         };
         let frame_s = json(&mut out, "acch.Frame", schema::FRAME_SCHEMA).map_err(e)?;
         let response_s = json(&mut out, "acch.Response", schema::RESPONSE_SCHEMA).map_err(e)?;
         let result_s = json(&mut out, "acch.Result", schema::RESULT_SCHEMA).map_err(e)?;
+        let latency_s = json(&mut out, "acch.Latency", schema::LATENCY_SCHEMA).map_err(e)?;
         let none = BTreeMap::new();
-        let mask_meta =
-            BTreeMap::from([("values".to_owned(), "0 background, 1 object".to_owned())]);
+        let mask_meta = BTreeMap::from([(
+            "values".to_owned(),
+            "0 background, non-zero (255) object".to_owned(),
+        )]);
         let ch = Channels {
             image: out
                 .add_channel(raw, TOPIC_IMAGE, "protobuf", &none)
@@ -181,6 +253,21 @@ impl<W: Write + Seek> Recorder<W> {
             seed: out
                 .add_channel(pose, TOPIC_SEED, "protobuf", &none)
                 .map_err(e)?,
+            calibration: out
+                .add_channel(calibration, TOPIC_CALIBRATION, "protobuf", &none)
+                .map_err(e)?,
+            overlay: out
+                .add_channel(annotations, TOPIC_OVERLAY, "protobuf", &none)
+                .map_err(e)?,
+            mask_overlay: out
+                .add_channel(annotations, TOPIC_MASK_OVERLAY, "protobuf", &none)
+                .map_err(e)?,
+            tf: out
+                .add_channel(transforms, TOPIC_TF, "protobuf", &none)
+                .map_err(e)?,
+            latency: out
+                .add_channel(latency_s, TOPIC_LATENCY, "json", &none)
+                .map_err(e)?,
         };
         Ok(Recorder {
             out,
@@ -188,7 +275,20 @@ impl<W: Write + Seek> Recorder<W> {
             scratch: Vec::new(),
             path: path.to_owned(),
             epoch_offset_ns,
+            slice_edges: Vec::new(),
+            runs: Vec::new(),
         })
+    }
+
+    /// Tells the recorder the θ of every database view (database order):
+    /// each response then carries `slice_edges`, which a plot over the
+    /// view index draws as a spike at the start of each θ slice.
+    pub fn set_view_thetas(&mut self, thetas: &[f32]) {
+        self.slice_edges = thetas
+            .iter()
+            .enumerate()
+            .map(|(i, t)| u8::from(i == 0 || thetas[i - 1] != *t))
+            .collect();
     }
 
     fn put(&mut self, channel: u16, sequence: u64, capture_ns: u64) -> Result<(), RecordError> {
@@ -249,10 +349,27 @@ impl<W: Write + Seek> Recorder<W> {
             step: info.width * 3,
         };
         proto::encode_raw_image(&mut self.scratch, &h, rgb);
-        self.put(self.ch.image, info.sequence, info.capture_ns)
+        self.put(self.ch.image, info.sequence, info.capture_ns)?;
+        // Every frame: a viewer that seeks finds one close by.
+        proto::encode_camera_calibration(
+            &mut self.scratch,
+            &proto::Calibration {
+                stamp_ns: h.stamp_ns,
+                frame_id: CAMERA_FRAME.into(),
+                width: info.width,
+                height: info.height,
+                intrinsics: info.intrinsics,
+                distortion: info
+                    .distortion
+                    .as_ref()
+                    .map(|(m, k)| (m.clone(), distortion_coefficients(m, k))),
+            },
+        );
+        self.put(self.ch.calibration, info.sequence, info.capture_ns)
     }
 
-    /// Records a segmentation mask (`width * height` bytes, 0/1) as mono8.
+    /// Records a segmentation mask (`width * height` bytes, 0 = background,
+    /// non-zero = object) as mono8, and its overlay.
     pub fn mask(
         &mut self,
         sequence: u64,
@@ -270,7 +387,21 @@ impl<W: Write + Seek> Recorder<W> {
             step: width,
         };
         proto::encode_raw_image(&mut self.scratch, &h, mask);
-        self.put(self.ch.mask, sequence, capture_ns)
+        self.put(self.ch.mask, sequence, capture_ns)?;
+        proto::mask_runs(mask, width, &mut self.runs);
+        let fill = [PointsAnnotation {
+            kind: PointsKind::LineList,
+            points: std::mem::take(&mut self.runs),
+            color: [0.0, 1.0, 0.3, 0.4],
+            colors: Vec::new(),
+            fill: None,
+            thickness: 1.0,
+        }];
+        proto::encode_image_annotations(&mut self.scratch, h.stamp_ns, &fill, &[]);
+        // The points' buffer is reused by the next mask.
+        let [fill] = fill;
+        self.runs = fill.points;
+        self.put(self.ch.mask_overlay, sequence, capture_ns)
     }
 
     /// Records the pose stage's match values (one per database view).
@@ -287,6 +418,11 @@ impl<W: Write + Seek> Recorder<W> {
             &ResponseJson {
                 sequence,
                 values: values.to_vec(),
+                slice_edges: if self.slice_edges.len() == values.len() {
+                    self.slice_edges.clone()
+                } else {
+                    Vec::new()
+                },
             },
         )
     }
@@ -320,6 +456,111 @@ impl<W: Write + Seek> Recorder<W> {
         self.put(self.ch.seed, sequence, capture_ns)
     }
 
+    /// Records the image overlay of a result on `/acch/overlay`: the
+    /// detection window (yellow), the ROI (cyan), the seed's axes (x red,
+    /// y green, z blue), the true axes (faint) and a caption.
+    pub fn overlay(
+        &mut self,
+        sequence: u64,
+        capture_ns: u64,
+        o: &Overlay,
+    ) -> Result<(), RecordError> {
+        let rect = |[x, y, w, h]: [f64; 4], color: proto::Rgba| PointsAnnotation {
+            kind: PointsKind::LineLoop,
+            points: vec![[x, y], [x + w, y], [x + w, y + h], [x, y + h]],
+            color,
+            colors: Vec::new(),
+            fill: None,
+            thickness: 2.0,
+        };
+        let axes = |px: [[f64; 2]; 4], alpha: f64, thickness: f64| PointsAnnotation {
+            kind: PointsKind::LineList,
+            points: vec![px[0], px[1], px[0], px[2], px[0], px[3]],
+            color: [1.0, 1.0, 1.0, alpha],
+            // One colour per point: both ends of a segment alike.
+            colors: [
+                [1.0, 0.15, 0.15, alpha],
+                [0.15, 0.9, 0.15, alpha],
+                [0.25, 0.45, 1.0, alpha],
+            ]
+            .into_iter()
+            .flat_map(|c| [c, c])
+            .collect(),
+            fill: None,
+            thickness,
+        };
+        let mut points = Vec::new();
+        let mut texts = Vec::new();
+        let label = |at: [f64; 2], text: &str, color: proto::Rgba| TextAnnotation {
+            position: at,
+            text: text.into(),
+            font_size: 13.0,
+            color,
+            background: [0.0, 0.0, 0.0, 0.6],
+        };
+        const YELLOW: proto::Rgba = [1.0, 0.86, 0.0, 1.0];
+        const CYAN: proto::Rgba = [0.0, 0.8, 1.0, 1.0];
+        if let Some(w) = o.window {
+            points.push(rect(w, YELLOW));
+            texts.push(label([w[0], w[1] - 4.0], "detection", YELLOW));
+        }
+        if let Some(r) = o.roi {
+            points.push(rect(r, CYAN));
+            texts.push(label([r[0], r[1] + r[3] + 14.0], "roi", CYAN));
+        }
+        if let Some(px) = o.truth_axes {
+            points.push(axes(px, 0.55, 1.5));
+        }
+        if let Some(px) = o.seed_axes {
+            points.push(axes(px, 1.0, 3.0));
+            texts.push(label(px[0], "seed", [1.0, 0.63, 0.0, 1.0]));
+        }
+        if !o.caption.is_empty() {
+            texts.push(label([8.0, 20.0], &o.caption, [1.0; 4]));
+        }
+        let stamp = capture_ns.saturating_add(self.epoch_offset_ns);
+        proto::encode_image_annotations(&mut self.scratch, stamp, &points, &texts);
+        self.put(self.ch.overlay, sequence, capture_ns)
+    }
+
+    /// Records poses as frames of `camera_optical` on `/tf` (`child`,
+    /// camera_from_child translation and rotation x, y, z, w), after the
+    /// fixed `camera` -> `camera_optical` transform.
+    pub fn transforms(
+        &mut self,
+        sequence: u64,
+        capture_ns: u64,
+        poses: &[(&str, [f64; 3], [f64; 4])],
+    ) -> Result<(), RecordError> {
+        let body = FrameTransform {
+            parent: CAMERA_BODY_FRAME.into(),
+            child: CAMERA_FRAME.into(),
+            translation: [0.0; 3],
+            rotation_xyzw: BODY_FROM_OPTICAL_XYZW,
+        };
+        let transforms: Vec<FrameTransform> = std::iter::once(body)
+            .chain(poses.iter().map(|(child, t, q)| FrameTransform {
+                parent: CAMERA_FRAME.into(),
+                child: (*child).into(),
+                translation: *t,
+                rotation_xyzw: *q,
+            }))
+            .collect();
+        let stamp = capture_ns.saturating_add(self.epoch_offset_ns);
+        proto::encode_frame_transforms(&mut self.scratch, stamp, &transforms);
+        self.put(self.ch.tf, sequence, capture_ns)
+    }
+
+    /// Records a frame's latencies on `/acch/latency`.
+    pub fn latency(
+        &mut self,
+        sequence: u64,
+        capture_ns: u64,
+        latency: &LatencyJson,
+    ) -> Result<(), RecordError> {
+        self.put_json(self.ch.latency, sequence, capture_ns, latency)
+    }
+
     /// Adds a metadata record (e.g. the recorder's counts at the end).
     pub fn metadata(
         &mut self,
@@ -349,6 +590,16 @@ impl<W: Write + Seek> Recorder<W> {
             .into_inner()
             .flush()
             .map_err(|source| RecordError::Io { path, source })
+    }
+}
+
+/// The coefficients a `CameraCalibration` of `model` carries: ROS
+/// `plumb_bob` has k1 k2 p1 p2 k3, `rational_polynomial` all eight.
+fn distortion_coefficients(model: &str, k: &[f64; 8]) -> Vec<f64> {
+    if model == "plumb_bob" {
+        k[..5].to_vec()
+    } else {
+        k.to_vec()
     }
 }
 

@@ -56,13 +56,35 @@ pub struct ResponseJson {
     pub sequence: u64,
     /// Match values.
     pub values: Vec<f32>,
+    /// 1 at the first view of each θ slice, else 0 (one per value): a plot
+    /// over the view index draws it as the slice separators. Absent in
+    /// recordings made before it was recorded.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub slice_edges: Vec<u8>,
 }
 
-/// JSON schema of `acch.Frame`.
+/// `/acch/latency`: where a frame's time went.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LatencyJson {
+    /// Frame number.
+    pub sequence: u64,
+    /// Per stage, ms from capture to that stage publishing the frame:
+    /// cumulative, so plotted together the lines stack (the gap below a
+    /// stage's line is its hop and processing); the last is end to end.
+    pub since_capture_ms: std::collections::BTreeMap<String, f64>,
+    /// Per stage, ms from receiving the frame to publishing it.
+    pub stage_ms: std::collections::BTreeMap<String, f64>,
+}
+
+/// JSON schema of `acch.Frame`. The schemas here use only what the
+/// Foxglove viewers' JSON-schema reader takes (one type a field, typed
+/// array items): a field that may be null is declared with its non-null
+/// type and says so, and a field of mixed types (`distortion`) is left out
+/// of `properties` (JSON Schema allows fields it does not list).
 pub const FRAME_SCHEMA: &str = r#"{
   "$schema": "https://json-schema.org/draft/2020-12/schema",
   "title": "acch.Frame",
-  "description": "Metadata of a camera frame on /camera/image",
+  "description": "Metadata of a camera frame on /camera/image. Also: distortion, [model, [k1 k2 p1 p2 k3 k4 k5 k6]], when the camera is distorted",
   "type": "object",
   "properties": {
     "sequence": {"type": "integer", "description": "frame number"},
@@ -71,16 +93,13 @@ pub const FRAME_SCHEMA: &str = r#"{
     "height": {"type": "integer"},
     "intrinsics": {"type": "array", "items": {"type": "number"}, "minItems": 4, "maxItems": 4,
                    "description": "fx, fy, cx, cy (pixels)"},
-    "truth": {"type": ["object", "null"], "properties": {
+    "truth": {"type": "object", "description": "null when the source does not know it", "properties": {
       "theta_deg": {"type": "number"}, "phi_deg": {"type": "number"}, "distance_m": {"type": "number"},
+      "roll_deg": {"type": "number"},
       "camera_from_object": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
                              "description": "column-major 3x4, OpenCV camera frame"}}},
     "arm_world_from_camera": {"type": "array", "items": {"type": "number"}, "minItems": 12, "maxItems": 12,
-                              "description": "the arm's camera pose, column-major 3x4, OpenCV camera axes"},
-    "distortion": {"type": "array", "prefixItems": [
-                     {"type": "string", "enum": ["plumb_bob", "rational_polynomial"]},
-                     {"type": "array", "items": {"type": "number"}, "minItems": 8, "maxItems": 8}],
-                   "description": "lens distortion model and k1 k2 p1 p2 k3 k4 k5 k6"}
+                              "description": "the arm's camera pose, column-major 3x4, OpenCV camera axes"}
   },
   "required": ["sequence", "capture_ns", "width", "height", "intrinsics"]
 }"#;
@@ -93,33 +112,77 @@ pub const RESPONSE_SCHEMA: &str = r#"{
   "type": "object",
   "properties": {
     "sequence": {"type": "integer"},
-    "values": {"type": "array", "items": {"type": "number"}}
+    "values": {"type": "array", "items": {"type": "number"}},
+    "slice_edges": {"type": "array", "items": {"type": "integer"},
+                    "description": "1 at the first view of each theta slice, else 0"}
   },
   "required": ["sequence", "values"]
 }"#;
 
-/// JSON schema of `acch.Result` (the JSON published on zenoh).
+/// JSON schema of `acch.Latency`.
+pub const LATENCY_SCHEMA: &str = r#"{
+  "$schema": "https://json-schema.org/draft/2020-12/schema",
+  "title": "acch.Latency",
+  "description": "Where a frame's time went, ms",
+  "type": "object",
+  "properties": {
+    "sequence": {"type": "integer"},
+    "since_capture_ms": {"type": "object", "additionalProperties": {"type": "number"},
+                         "description": "per stage: capture -> that stage published (cumulative)"},
+    "stage_ms": {"type": "object", "additionalProperties": {"type": "number"},
+                 "description": "per stage: received -> published"}
+  },
+  "required": ["sequence", "since_capture_ms", "stage_ms"]
+}"#;
+
+/// JSON schema of `acch.Result` (the JSON published on zenoh). Fields that
+/// may be null are declared with their non-null type; `trail` (pairs of a
+/// stage name and two times) has no single item type and is described but
+/// not listed.
 pub const RESULT_SCHEMA: &str = r#"{
   "$schema": "https://json-schema.org/draft/2020-12/schema",
   "title": "acch.Result",
-  "description": "Final result of one frame, as published on <prefix>/<object>/result",
+  "description": "Final result of one frame, as published on <prefix>/<object>/result. Also: trail, [[stage, [received_ns, published_ns]]] per stage",
   "type": "object",
   "properties": {
     "object": {"type": "string"},
     "sequence": {"type": "integer"},
     "accepted": {"type": "boolean"},
-    "stamp": {"type": "object", "properties": {
-      "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"}}},
-    "found": {"type": "boolean"},
-    "roi": {"type": ["array", "null"], "items": {"type": "integer"}},
-    "estimate_deg": {"type": ["array", "null"], "items": {"type": "number"}, "description": "theta, phi"},
     "rating": {"type": "string", "description": "accepted, rejected, unrated, skipped or failed"},
-    "confidence": {"type": ["number", "null"]},
-    "threshold": {"type": ["number", "null"]},
-    "seed": {"type": ["object", "null"]},
-    "fused": {"type": ["object", "null"]},
-    "truth": {"type": ["object", "null"]},
-    "trail": {"type": "array", "description": "[stage, [received_ns, published_ns]]"}
+    "confidence": {"type": "number", "description": "null when not rated"},
+    "threshold": {"type": "number", "description": "null when not rated"},
+    "stamp": {"type": "object", "properties": {
+      "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
+      "wall_ns": {"type": "integer"}}},
+    "found": {"type": "boolean"},
+    "roi": {"type": "array", "items": {"type": "integer"}, "description": "x, y, width, height; null when not segmented"},
+    "estimate_deg": {"type": "array", "items": {"type": "number"}, "description": "theta, phi; null when not estimated"},
+    "roll_deg": {"type": "number", "description": "null when not estimated"},
+    "seed": {"type": "object", "description": "null when not accepted", "properties": {
+      "object": {"type": "string"}, "sequence": {"type": "integer"},
+      "stamp": {"type": "object", "properties": {
+        "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
+        "wall_ns": {"type": "integer"}}},
+      "frame_id": {"type": "string"}, "child_frame_id": {"type": "string"},
+      "translation": {"type": "array", "items": {"type": "number"}}, "translation_unit": {"type": "string"},
+      "rotation_xyzw": {"type": "array", "items": {"type": "number"}},
+      "covariance": {"type": "array", "items": {"type": "number"}}, "confidence": {"type": "number"}}},
+    "fused": {"type": "object", "description": "null until the filter holds a pose", "properties": {
+      "view_deg": {"type": "array", "items": {"type": "number"}},
+      "view_covariance_deg2": {"type": "array", "items": {"type": "number"}},
+      "translation": {"type": "array", "items": {"type": "number"}}, "translation_unit": {"type": "string"},
+      "rotation_xyzw": {"type": "array", "items": {"type": "number"}},
+      "rotation_covariance": {"type": "array", "items": {"type": "number"}},
+      "translation_covariance": {"type": "array", "items": {"type": "number"}},
+      "outcome": {"type": "string"}, "fused": {"type": "integer"}, "since_update": {"type": "integer"}}},
+    "truth": {"type": "object", "description": "null when the source does not know it", "properties": {
+      "theta_deg": {"type": "number"}, "phi_deg": {"type": "number"}, "distance": {"type": "number"},
+      "roll_deg": {"type": "number"},
+      "translation": {"type": "array", "items": {"type": "number"}}, "translation_unit": {"type": "string"},
+      "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}},
+    "arm": {"type": "object", "description": "null when the arm reported no pose", "properties": {
+      "translation": {"type": "array", "items": {"type": "number"}}, "translation_unit": {"type": "string"},
+      "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
 }"#;

@@ -34,6 +34,7 @@ fn pixels(seq: u64, w: u32, h: u32) -> Vec<u8> {
 
 fn record(path: &Path, n: u64) {
     let mut r = Recorder::create(path, 1_700_000_000_000_000_000).unwrap();
+    r.set_view_thetas(&[45.0, 45.0, 60.0]);
     for s in 0..n {
         let (w, h) = (6, 4);
         r.frame(&info(s, w, h), &pixels(s, w, h)).unwrap();
@@ -47,6 +48,29 @@ fn record(path: &Path, n: u64) {
         )
         .unwrap();
         r.seed(s, 0, [0.0, 0.1, 5.0], [0.0, 0.0, 0.0, 1.0]).unwrap();
+        r.overlay(
+            s,
+            0,
+            &Overlay {
+                window: Some([1.0, 1.0, 3.0, 2.0]),
+                seed_axes: Some([[3.0, 2.0], [4.0, 2.0], [3.0, 3.0], [3.0, 2.0]]),
+                caption: "θ 45.3° φ 2.0°".into(),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        r.transforms(s, 0, &[("seed", [0.0, 0.1, 5.0], [0.0, 0.0, 0.0, 1.0])])
+            .unwrap();
+        r.latency(
+            s,
+            0,
+            &LatencyJson {
+                sequence: s,
+                since_capture_ms: BTreeMap::from([("pose".into(), 2.5)]),
+                stage_ms: BTreeMap::from([("pose".into(), 1.0)]),
+            },
+        )
+        .unwrap();
     }
     r.metadata(
         "acch.record",
@@ -87,6 +111,25 @@ fn frames_replay_bit_exactly_in_order() {
     let responses = read_json(&path, TOPIC_RESPONSE).unwrap();
     let r: ResponseJson = serde_json::from_value(responses[0].clone()).unwrap();
     assert_eq!(r.values, vec![0.5, 0.25, f32::MIN_POSITIVE]);
+    // Views 0 and 2 start the θ slices 45° and 60°.
+    assert_eq!(r.slice_edges, vec![1, 0, 1]);
+    let latency = read_json(&path, TOPIC_LATENCY).unwrap();
+    assert_eq!(latency.len(), 5);
+    assert_eq!(latency[4]["since_capture_ms"]["pose"].as_f64(), Some(2.5));
+}
+
+/// A response of another length than the views the recorder was told of
+/// carries no slice edges rather than wrong ones.
+#[test]
+fn slice_edges_need_one_theta_per_view() {
+    let mut r = Recorder::new(Cursor::new(Vec::new()), Path::new("mem.mcap"), 0).unwrap();
+    r.set_view_thetas(&[45.0, 60.0]);
+    r.response(0, 0, &[0.5, 0.5, 0.5]).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&r.scratch).unwrap();
+    assert!(json.get("slice_edges").is_none(), "{json}");
+    r.response(1, 0, &[0.5, 0.5]).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&r.scratch).unwrap();
+    assert_eq!(json["slice_edges"], serde_json::json!([1, 1]));
 }
 
 #[test]
@@ -138,4 +181,60 @@ fn an_empty_recording_is_an_error() {
     Recorder::create(&path, 0).unwrap().finish().unwrap();
     let e = scan(&path).unwrap_err();
     assert!(e.to_string().contains("no frames"), "{e}");
+}
+
+/// What the Foxglove viewers' JSON-schema reader takes: one type a field
+/// (no `["number", "null"]`), objects with `properties` or
+/// `additionalProperties`, arrays with typed scalar or object `items`.
+/// A schema it rejects makes the whole channel unplottable there.
+fn foxglove_readable(path: &str, s: &serde_json::Value) -> Result<(), String> {
+    let ty = s["type"]
+        .as_str()
+        .ok_or_else(|| format!("{path}: type {} is not one name", s["type"]))?;
+    match ty {
+        "object" => {
+            let props = s["properties"].as_object();
+            if props.is_none() && !s["additionalProperties"].is_object() {
+                return Err(format!(
+                    "{path}: an object with neither properties nor additionalProperties"
+                ));
+            }
+            for (k, v) in props.into_iter().flatten() {
+                foxglove_readable(&format!("{path}.{k}"), v)?;
+            }
+            if s["additionalProperties"].is_object() {
+                foxglove_readable(&format!("{path}.*"), &s["additionalProperties"])?;
+            }
+            Ok(())
+        }
+        "array" => match s["items"]["type"].as_str() {
+            Some("number" | "integer" | "string" | "boolean") => Ok(()),
+            Some("object") => foxglove_readable(&format!("{path}[]"), &s["items"]),
+            _ => Err(format!(
+                "{path}: array items {} are not one scalar or object type",
+                s["items"]
+            )),
+        },
+        "number" | "integer" | "string" | "boolean" => Ok(()),
+        other => Err(format!("{path}: type {other}")),
+    }
+}
+
+#[test]
+fn the_json_schemas_are_readable_by_foxglove() {
+    for (name, text) in [
+        ("acch.Frame", schema::FRAME_SCHEMA),
+        ("acch.Response", schema::RESPONSE_SCHEMA),
+        ("acch.Result", schema::RESULT_SCHEMA),
+        ("acch.Latency", schema::LATENCY_SCHEMA),
+    ] {
+        let v: serde_json::Value = serde_json::from_str(text).unwrap();
+        foxglove_readable(name, &v).unwrap();
+    }
+    // The check itself refuses what broke the channels before.
+    let nullable =
+        serde_json::json!({"type": "object", "properties": {"c": {"type": ["number", "null"]}}});
+    assert!(foxglove_readable("x", &nullable).is_err());
+    let untyped = serde_json::json!({"type": "object", "properties": {"t": {"type": "array"}}});
+    assert!(foxglove_readable("x", &untyped).is_err());
 }
