@@ -4,27 +4,11 @@
 //! spec (tests/bop_check.py) accepts the files; bad datasets are refused
 //! naming the file.
 
+mod common;
+
+use common::{acch, ok};
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn acch(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_acch"))
-        .args(args)
-        .current_dir(cwd)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("run acch")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "acch failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn failed(out: &Output) -> String {
     assert!(!out.status.success(), "acch should have failed");

@@ -2,27 +2,10 @@
 //! images, estimate their pose, export features for NumPy, and fail clearly
 //! on bad input.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn acch(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_acch"))
-        .args(args)
-        .current_dir(cwd)
-        .env("RUST_LOG", "warn")
-        .output()
-        .expect("run acch")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "acch failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use common::{acch, ok};
+use std::process::Command;
 
 /// The value after `key` in "key value" output.
 fn field(text: &str, key: &str) -> f32 {

@@ -4,20 +4,13 @@
 //! Each trains a database whose table-1 figures match the OBJ's within
 //! 0.5°.
 
+mod common;
+
+use common::ok;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 
 const DUCK: &str = "/work/shared/data/duck/duck.obj";
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn table1(mesh: &Path, json: &Path) -> serde_json::Value {
     ok(&Command::new(env!("CARGO_BIN_EXE_acch"))

@@ -80,3 +80,25 @@ pub fn acch_run(dir: &Path, args: &[&str]) -> Output {
     );
     out
 }
+
+/// `acch ARGS` in `cwd`, quiet below warnings.
+pub fn acch(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_acch"))
+        .args(args)
+        .current_dir(cwd)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("run acch")
+}
+
+/// The stdout of a command that must have succeeded (else its output is
+/// the failure message).
+pub fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
