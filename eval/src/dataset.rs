@@ -16,7 +16,7 @@ use crate::train::{read_image, read_mask};
 use acch_capture::labels::read_labels;
 use acch_core::{IndexImage, ViewDatabase};
 use acch_pipeline::stage::{StageCounters, step};
-use acch_pipeline::stages::{Confidence, Pose, RegionPayload, Segmented};
+use acch_pipeline::stages::{RegionPayload, Segmented};
 use acch_pipeline::wire::{Intrinsics, PixelRect, StageId};
 use acch_pipeline::{Chain, FrameHeader, Stage, StageSettings};
 use acch_pose::phi_error;
@@ -229,8 +229,6 @@ fn roll_error(a: f64, b: f64) -> f64 {
 struct Sized {
     size: (u32, u32),
     chain: Chain,
-    pose: Pose,
-    confidence: Confidence,
 }
 
 /// Evaluates `db` on `images`; `source` names them in the report.
@@ -268,8 +266,6 @@ pub fn evaluate(
         Ok(Sized {
             size,
             chain: Chain::build(db, &settings)?,
-            pose: Pose::new(db, &settings)?,
-            confidence: Confidence::new(db, &settings)?,
         })
     };
     let mut stages: Option<Sized> = None;
@@ -311,14 +307,30 @@ pub fn evaluate(
                         let roi = PixelRect::from(roi);
                         db.palette.quantise_into(rgb.as_raw(), w, h, &mut index);
                         region.resize(2 * w as usize * h as usize, 0);
-                        response.resize(s.pose.max_payload(), 0);
+                        // The chain's own pose and confidence stages, fed
+                        // the annotated mask instead of segmentation's.
+                        let stages = s.chain.stages_mut();
+                        response.resize(stages.pose.max_payload(), 0);
                         RegionPayload::write(&mask, &index.data, w, roi, &mut region)
                             .map_err(|f| EvalError::Input(format!("{}: {f}", path.display())))?;
                         let segmented = Segmented::with_region(frame.envelope, roi);
                         let [c_pose, c_conf] = &mut counters;
-                        let posed =
-                            step(&mut s.pose, &segmented, &region, &mut response, 0, c_pose);
-                        let rated = step(&mut s.confidence, &posed, &response, &mut [], 0, c_conf);
+                        let posed = step(
+                            &mut stages.pose,
+                            &segmented,
+                            &region,
+                            &mut response,
+                            0,
+                            c_pose,
+                        );
+                        let rated = step(
+                            &mut stages.confidence,
+                            &posed,
+                            &response,
+                            &mut [],
+                            0,
+                            c_conf,
+                        );
                         (posed.pose.done(), rated.rating)
                     }
                 }
