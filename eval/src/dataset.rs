@@ -60,8 +60,9 @@ pub enum Segment {
 pub struct DatasetOptions {
     /// Where the object is taken from.
     pub segment: Segment,
-    /// The largest roll the pose stage searches, degrees (0: none).
-    pub roll_search_deg: f32,
+    /// The largest roll the pose stage searches, degrees (0: none); unset:
+    /// what the database was trained with.
+    pub roll_search_deg: Option<f32>,
 }
 
 /// One image's outcome.
@@ -261,7 +262,9 @@ pub fn evaluate(
             height: size.1,
             distance_m: None,
             unrated: true,
-            roll_search_deg: options.roll_search_deg,
+            roll_search_deg: options
+                .roll_search_deg
+                .unwrap_or_else(|| acch_pose::trained_roll_search_deg(db)),
         };
         Ok(Sized {
             size,

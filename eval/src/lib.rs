@@ -6,6 +6,7 @@
 //!   segmentation and the confidence network;
 //! - [`sequence`]: camera trajectories, single frames against the seeding
 //!   stage's fused pose, and active re-view after a rejection ([`review`]);
+//! - [`roll`]: a camera that rolls, a database trained to search it;
 //! - [`dataset`]: labelled photographs the user brings, a [`bop`] split or
 //!   a folder with labels.csv;
 //! - [`train`]: an object's whole database, and the cached default.
@@ -17,6 +18,7 @@ pub mod bop;
 pub mod dataset;
 pub mod protocol;
 pub mod review;
+pub mod roll;
 pub mod sequence;
 pub mod table1;
 pub mod table2;

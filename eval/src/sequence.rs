@@ -388,8 +388,14 @@ fn train(
     scenes: usize,
 ) -> Result<ViewDatabase, EvalError> {
     let mut db = train::train_rendered(object, config, &RenderedTraining::default())?;
-    let (choice, model, _) =
-        train::choose_confidence_input(&db, object, scenes, DEFAULT_DISTANCE, 0.0, 0)?;
+    let (choice, model, _) = train::choose_confidence_input(
+        &db,
+        object,
+        scenes,
+        DEFAULT_DISTANCE,
+        train::ConfidenceRoll::default(),
+        0,
+    )?;
     tracing::info!("{choice}");
     model.store(&mut db);
     Ok(db)

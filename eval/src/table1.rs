@@ -55,6 +55,9 @@ pub struct Metrics {
     /// Mean |Δroll| over the estimates made, degrees (the roll is 0 when
     /// not searched).
     pub mean_roll_err_deg: f64,
+    /// Mean turn of the estimated camera about its optical axis against
+    /// the truth ([`protocol::turn_error_deg`]), degrees.
+    pub mean_turn_err_deg: f64,
     /// Share of images whose estimated camera rotation (θ, φ and roll
     /// together) is within 10° of the truth: near θ = 90° a turn in φ and
     /// a roll are the same rotation, which this counts once.
@@ -68,6 +71,9 @@ pub struct ErrorRow {
     pub truth: (f32, f32),
     /// Estimated elevation and azimuth, if any.
     pub estimate: Option<(f32, f32)>,
+    /// True and estimated camera roll, degrees (the estimate's is 0
+    /// without the search).
+    pub roll: (f32, f32),
     /// Best match value.
     pub best_value: f32,
 }
@@ -117,30 +123,6 @@ struct Variant {
     roll_search_deg: f64,
 }
 
-/// The views rolled uniformly in ±`max_deg`, drawn from `seed`.
-fn rolled(views: Vec<ViewPose>, max_deg: f64, seed: u64) -> Result<Vec<ViewPose>, EvalError> {
-    if max_deg == 0.0 {
-        return Ok(views);
-    }
-    let mut state = seed ^ 0x9e37_79b9_7f4a_7c15;
-    views
-        .into_iter()
-        .map(|v| {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            let u = (state >> 11) as f64 / (1u64 << 53) as f64;
-            Ok(v.with_roll((2.0 * u - 1.0) * max_deg)?)
-        })
-        .collect()
-}
-
-/// |a - b| of two rolls, wrapped, degrees.
-fn roll_error(a: f64, b: f64) -> f64 {
-    let d = (a - b).rem_euclid(360.0);
-    d.min(360.0 - d)
-}
-
 /// Runs table 1 for `object` with histogram options `base`.
 pub fn table1(
     object: Arc<Object>,
@@ -155,7 +137,7 @@ pub fn table1(
     let renderer = protocol::renderer(object.clone(), plain, TextureSet::Training, o.seed);
     let grid: ViewSpec = PAPER_GRID.parse()?;
     let train_views_list = grid.views(DEFAULT_DISTANCE, 0);
-    let test_views = rolled(off_grid_random(&grid, o.n, o.seed), o.roll_deg, o.seed)?;
+    let test_views = protocol::rolled(off_grid_random(&grid, o.n, o.seed), o.roll_deg, o.seed)?;
     let train = protocol::render_views(&renderer, &train_views_list, 0, "train views");
     let test = protocol::render_views(&renderer, &test_views, o.seed, "test views");
 
@@ -244,17 +226,18 @@ impl Table1Report {
             self.object, self.n, self.train_views, self.floor_phi_deg, self.floor_theta_deg
         );
         println!(
-            "{:<24} {:>5} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8}",
-            "variant", "n", "E(phi)", "E(theta)", "E(roll)", "failures", "rot<=10", "ms"
+            "{:<24} {:>5} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8} {:>8}",
+            "variant", "n", "E(phi)", "E(theta)", "E(roll)", "E(turn)", "failures", "rot<=10", "ms"
         );
         for m in &self.variants {
             println!(
-                "{:<24} {:>5} {:>8.2}° {:>8.2}° {:>8.2}° {:>8.1}% {:>7.1}% {:>8.2}",
+                "{:<24} {:>5} {:>8.2}° {:>8.2}° {:>8.2}° {:>8.2}° {:>8.1}% {:>7.1}% {:>8.2}",
                 m.name,
                 m.n,
                 m.mean_phi_err_deg,
                 m.mean_theta_err_deg,
                 m.mean_roll_err_deg,
+                m.mean_turn_err_deg,
                 100.0 * m.failure_rate,
                 100.0 * m.rotation_within_10deg,
                 m.ms_per_estimate
@@ -272,22 +255,32 @@ impl Table1Report {
     pub fn write_errors(&self, path: &Path) -> Result<(), EvalError> {
         use std::fmt::Write as _;
         let mut s = String::from(
-            "index,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,match,failure\n",
+            "index,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,match,failure,roll_deg,est_roll_deg,rotation_err_deg\n",
         );
         for (i, r) in self.errors.iter().enumerate() {
             let _ = match r.estimate {
                 Some((t, p)) => {
                     let (dt, dp) = ((t - r.truth.0).abs(), phi_error(p, r.truth.1));
+                    let rotation = protocol::rotation_error_deg(
+                        [t as f64, p as f64, r.roll.1 as f64],
+                        [r.truth.0 as f64, r.truth.1 as f64, r.roll.0 as f64],
+                    );
                     writeln!(
                         s,
-                        "{i},{:.3},{:.3},{t:.3},{p:.3},{dt:.3},{dp:.3},{:.5},{}",
+                        "{i},{:.3},{:.3},{t:.3},{p:.3},{dt:.3},{dp:.3},{:.5},{},{:.3},{:.3},{rotation:.3}",
                         r.truth.0,
                         r.truth.1,
                         r.best_value,
-                        fails((t, p), r.truth) as u8
+                        fails((t, p), r.truth) as u8,
+                        r.roll.0,
+                        r.roll.1
                     )
                 }
-                None => writeln!(s, "{i},{:.3},{:.3},,,,,,1", r.truth.0, r.truth.1),
+                None => writeln!(
+                    s,
+                    "{i},{:.3},{:.3},,,,,,1,{:.3},,",
+                    r.truth.0, r.truth.1, r.roll.0
+                ),
             };
         }
         std::fs::write(path, s).map_err(|source| EvalError::Io {
@@ -366,7 +359,7 @@ fn evaluate(
     let mut rows = Vec::with_capacity(tests.len());
     let (mut sum_phi, mut sum_theta, mut failures, mut estimated) =
         (0.0f64, 0.0f64, 0usize, 0usize);
-    let mut sum_roll = 0.0f64;
+    let (mut sum_roll, mut sum_turn) = (0.0f64, 0.0f64);
     let mut rotation_ok = 0usize;
     let mut seconds = 0.0f64;
     for (i, r) in tests.iter().enumerate() {
@@ -390,17 +383,23 @@ fn evaluate(
         rows.push(ErrorRow {
             truth,
             estimate: estimate.map(|e| (e.theta_deg, e.phi_deg)),
+            roll: (
+                r.truth.roll_deg as f32,
+                estimate.map_or(0.0, |e| e.roll_deg),
+            ),
             best_value: estimate.map_or(0.0, |e| e.best_value),
         });
         match estimate {
             Some(e) => {
                 sum_phi += phi_error(e.phi_deg, truth.1) as f64;
                 sum_theta += (e.theta_deg - truth.0).abs() as f64;
-                sum_roll += roll_error(e.roll_deg as f64, r.truth.roll_deg);
-                let error = protocol::rotation_error_deg(
+                sum_roll += protocol::roll_error_deg(e.roll_deg as f64, r.truth.roll_deg);
+                let (rotation, true_rotation) = (
                     [e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64],
                     [r.truth.theta_deg, r.truth.phi_deg, r.truth.roll_deg],
                 );
+                let error = protocol::rotation_error_deg(rotation, true_rotation);
+                sum_turn += protocol::turn_error_deg(rotation, true_rotation);
                 rotation_ok += (error <= 10.0) as usize;
                 estimated += 1;
                 failures += fails((e.theta_deg, e.phi_deg), truth) as usize;
@@ -419,6 +418,7 @@ fn evaluate(
             ms_per_estimate: 1e3 * seconds / n as f64,
             rotation_within_10deg: rotation_ok as f64 / tests.len().max(1) as f64,
             mean_roll_err_deg: sum_roll / estimated.max(1) as f64,
+            mean_turn_err_deg: sum_turn / estimated.max(1) as f64,
         },
         rows,
     ))

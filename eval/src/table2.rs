@@ -22,17 +22,13 @@ use crate::train::{
     self, ConfidenceChoice, DEFAULT_CONFIDENCE_SCENES, RenderedTraining, kind_name,
 };
 use crate::{EvalError, write_json};
-use acch_capture::{
-    Background, DEFAULT_DISTANCE, Intrinsics, Object, Rendered, Renderer, SceneConfig, TextureSet,
-    ViewPose, ViewSpec,
-};
+use acch_capture::{DEFAULT_DISTANCE, Intrinsics, Object, TextureSet, ViewSpec};
 use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
 use acch_pipeline::wire::{Outcome, PixelRect, StageId};
 use acch_pipeline::{Hop, Stage, StageSettings};
 use acch_pose::phi_error;
 use acch_pose::train::{TrainConfig, mask_bbox};
 use acch_recognition::RecognitionModel;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -171,7 +167,7 @@ pub fn table2(
         &object,
         DEFAULT_CONFIDENCE_SCENES,
         DEFAULT_DISTANCE,
-        0.0,
+        train::ConfidenceRoll::default(),
         0,
     )?;
     model.store(&mut db);
@@ -214,7 +210,14 @@ pub fn table2(
     };
     let mut sequence = 0u64;
     for (name, background) in protocol::backgrounds() {
-        let scenes = render_scenes(&object, (background, textures), &views, seed, name);
+        let scenes = protocol::render_scenes(
+            &object,
+            (background, textures),
+            &views,
+            seed,
+            name,
+            Some(OUT_OF_VIEW_PX),
+        );
         let (mut sum_iou, mut sum_phi, mut sum_theta) = (0f64, 0f64, 0f64);
         let (mut estimated, mut failures, mut roi_failures, mut true_failures) = (0, 0, 0, 0);
         let (mut not_found, mut false_detections) = (0, 0);
@@ -223,6 +226,9 @@ pub fn table2(
         let (mut ms_sum, mut ms_max) = (0f64, 0f64);
         let (mut scores, mut max_empty) = (Vec::with_capacity(n), 0f32);
         for ((scene, empty), view) in scenes.iter().zip(&views) {
+            let empty = empty
+                .as_ref()
+                .expect("rendered with the object out of view");
             let truth = (view.theta_deg as f32, view.phi_deg as f32);
             let fails_or_none = |e: Option<(f32, f32)>| e.is_none_or(|e| fails(e, truth));
             // The object out of view: any detection is a false one.
@@ -495,50 +501,6 @@ impl Table2Report {
             "left: all estimates; right of |: accepted by the confidence network. lost = not found; fail(roi) = scale from the segmented region; fail(true) = true mask; false+ = detections with the object out of view"
         );
     }
-}
-
-/// Renders each test pose on `background` twice, in parallel: the scene,
-/// and the same scene with the object out of view. Clutter layouts change
-/// from image to image.
-fn render_scenes(
-    object: &Arc<Object>,
-    (background, textures): (Background, TextureSet),
-    views: &[ViewPose],
-    seed: u64,
-    name: &str,
-) -> Vec<(Rendered, Rendered)> {
-    let bar = protocol::progress(views.len() as u64, &format!("background {name}"));
-    let shared = (!background.has_clutter())
-        .then(|| protocol::renderer(object.clone(), background, textures, seed));
-    let mut far = Intrinsics::default();
-    far.cx += OUT_OF_VIEW_PX;
-    let out = views
-        .par_iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let scene_seed = acch_capture::frame_seed(seed, i);
-            let own;
-            let renderer = match &shared {
-                Some(r) => r,
-                None => {
-                    own = protocol::renderer(object.clone(), background, textures, scene_seed);
-                    &own
-                }
-            };
-            let empty = Renderer::new(
-                SceneConfig {
-                    intrinsics: far,
-                    ..renderer.config().clone()
-                },
-                if shared.is_some() { seed } else { scene_seed },
-            );
-            let r = (renderer.render(v, scene_seed), empty.render(v, scene_seed));
-            bar.inc(1);
-            r
-        })
-        .collect();
-    bar.finish_and_clear();
-    out
 }
 
 /// Intersection over union of two masks (non-zero = set).

@@ -77,14 +77,42 @@ pub struct RenderedTraining {
     pub distance: f64,
     /// Seed of the views and the scene.
     pub seed: u64,
-    /// Largest camera roll of the confidence-training (and validation)
-    /// scenes, degrees: 0 (the default) keeps them upright; above 0 every
-    /// other scene rolls uniformly within it, its estimate labelled by the
-    /// roll too ([`protocol::fails_with_roll`]), so the network learns to
-    /// reject what a rolled camera makes without the pose stage's roll
-    /// search (a seed turned by the roll), at a cost in upright
-    /// acceptance (docs/accuracy.md).
-    pub confidence_roll_deg: f64,
+    /// How the confidence network's scenes roll and whether the pose
+    /// stage searches the roll on them (upright, no search by default).
+    pub roll: ConfidenceRoll,
+}
+
+/// The camera roll of the confidence-training (and validation) scenes, and
+/// the roll search their estimates are made with.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ConfidenceRoll {
+    /// Largest camera roll of the scenes, degrees: 0 keeps them upright;
+    /// above 0 every other scene rolls uniformly within it.
+    pub scenes_deg: f64,
+    /// The largest roll the pose stage searches on them, degrees (0: none).
+    /// A database trained with a search records it
+    /// ([`acch_pose::store_roll_search_deg`]), and runs use it.
+    pub search_deg: f64,
+}
+
+impl ConfidenceRoll {
+    /// Whether the scenes' estimates are labelled by the whole rotation
+    /// ([`protocol::fails_with_roll`]) rather than the paper's rule on
+    /// (θ, φ): whenever anything rolls. Upright training without the
+    /// search keeps the paper's rule, so its database is what it always
+    /// was, byte for byte.
+    fn labels_by_rotation(&self) -> bool {
+        self.scenes_deg > 0.0 || self.search_deg > 0.0
+    }
+
+    /// Whether an estimate of scene truth `truth` is reliable.
+    fn reliable(&self, estimate: [f32; 3], truth: [f32; 3]) -> bool {
+        if self.labels_by_rotation() {
+            !protocol::fails_with_roll(estimate, truth)
+        } else {
+            !protocol::fails((estimate[0], estimate[1]), (truth[0], truth[1]))
+        }
+    }
 }
 
 impl Default for RenderedTraining {
@@ -95,7 +123,7 @@ impl Default for RenderedTraining {
             background: Background::default(),
             distance: DEFAULT_DISTANCE,
             seed: 0,
-            confidence_roll_deg: 0.0,
+            roll: ConfidenceRoll::default(),
         }
     }
 }
@@ -155,13 +183,14 @@ pub fn unrated_chain(
     width: u32,
     height: u32,
     distance_m: f64,
+    roll_search_deg: f64,
 ) -> Result<Chain, EvalError> {
     let settings = StageSettings {
         width,
         height,
         distance_m: Some(distance_m),
         unrated: true,
-        roll_search_deg: 0.0,
+        roll_search_deg: roll_search_deg as f32,
     };
     let mut stages = Stages::new(db, &settings)?;
     stages.confidence = Confidence::unrated(db);
@@ -177,7 +206,7 @@ pub fn confidence_samples(
     per_background: usize,
     seed_base: u64,
     distance: f64,
-    max_roll_deg: f64,
+    roll: ConfidenceRoll,
 ) -> Result<Vec<ConfidenceSample>, EvalError> {
     let params = acch_confidence::FeatureParams::default();
     let mut samples = Vec::new();
@@ -185,14 +214,14 @@ pub fn confidence_samples(
         let seed = seed_base + k as u64;
         let background: Background = name.parse()?;
         let renderer = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
-        let views = confidence_views(per_background, distance, seed, max_roll_deg)?;
+        let views = confidence_views(per_background, distance, seed, roll.scenes_deg)?;
         let renders = protocol::render_views(&renderer, &views, seed, name);
         let (w, h) = renders.first().map_or((640, 480), |r| r.image.dimensions());
         let chunk: Vec<ConfidenceSample> = renders
             .par_iter()
             .enumerate()
             .map_init(
-                || unrated_chain(db, w, h, distance * object.radius_m()),
+                || unrated_chain(db, w, h, distance * object.radius_m(), roll.search_deg),
                 |chain, (i, r)| -> Result<Option<ConfidenceSample>, EvalError> {
                     let chain = chain
                         .as_mut()
@@ -210,7 +239,7 @@ pub fn confidence_samples(
                     Ok(Some(ConfidenceSample {
                         features: Kind::Features.input(&params, resp, slices, views)?,
                         response: Kind::Response.input(&params, resp, slices, views)?,
-                        reliable: !protocol::fails_with_roll(
+                        reliable: roll.reliable(
                             [e.theta_deg, e.phi_deg, e.roll_deg],
                             [
                                 r.truth.theta_deg as f32,
@@ -360,7 +389,7 @@ pub fn choose_confidence_input(
     object: &Arc<Object>,
     per_background: usize,
     distance: f64,
-    max_roll_deg: f64,
+    roll: ConfidenceRoll,
     seed: u64,
 ) -> Result<
     (
@@ -370,8 +399,7 @@ pub fn choose_confidence_input(
     ),
     EvalError,
 > {
-    let samples =
-        |base| confidence_samples(db, object, per_background, base, distance, max_roll_deg);
+    let samples = |base| confidence_samples(db, object, per_background, base, distance, roll);
     let train = samples(CONFIDENCE_SEED_BASE)?;
     let validation = samples(VALIDATION_SEED_BASE)?;
     let labels: Vec<bool> = validation.iter().map(|s| s.reliable).collect();
@@ -466,6 +494,7 @@ pub fn train_object(
     confidence: Option<(usize, ConfidenceInput)>,
 ) -> Result<(ViewDatabase, Option<ConfidenceChoice>), EvalError> {
     let mut db = train_rendered(object, config, training)?;
+    acch_pose::store_roll_search_deg(&mut db, training.roll.search_deg as f32);
     let Some((scenes, input)) = confidence.filter(|(n, _)| *n > 0) else {
         return Ok((db, None));
     };
@@ -476,7 +505,7 @@ pub fn train_object(
                 object,
                 scenes,
                 training.distance,
-                training.confidence_roll_deg,
+                training.roll,
                 training.seed,
             )?;
             tracing::info!("{choice}");
@@ -490,7 +519,7 @@ pub fn train_object(
                 scenes,
                 CONFIDENCE_SEED_BASE,
                 training.distance,
-                training.confidence_roll_deg,
+                training.roll,
             )?;
             let reliable = samples.iter().filter(|s| s.reliable).count();
             tracing::info!(

@@ -70,8 +70,10 @@ pub struct PipelineConfig {
     pub object_radius_m: Option<f64>,
     /// The largest roll of the camera about its optical axis the pose
     /// stage searches, degrees either way (0 = none: image up is the
-    /// training views' up, as the paper assumes).
-    pub roll_search_deg: f64,
+    /// training views' up, as the paper assumes); unset = the search the
+    /// database's confidence network was trained with (`acch train
+    /// --roll-search-deg`; none for the default database).
+    pub roll_search_deg: Option<f64>,
     /// The simulated camera rolls about its optical axis within ±this,
     /// degrees (0: upright).
     pub camera_roll_deg: f64,
@@ -182,7 +184,7 @@ impl Default for PipelineConfig {
             mesh: None,
             mesh_up: "+y".into(),
             mesh_unit_m: None,
-            roll_search_deg: 0.0,
+            roll_search_deg: None,
             camera_roll_deg: 0.0,
             background: "A".into(),
             elevation_deg: [lo, hi],
@@ -321,12 +323,10 @@ impl PipelineConfig {
                 "must be auto, none or a comma-separated list of CPU numbers",
             ));
         }
-        if !(self.roll_search_deg.is_finite() && (0.0..=180.0).contains(&self.roll_search_deg)) {
-            return Err(bad(
-                "roll_search_deg",
-                &self.roll_search_deg,
-                "must be 0..=180 degrees",
-            ));
+        if let Some(deg) = self.roll_search_deg
+            && !(deg.is_finite() && (0.0..=180.0).contains(&deg))
+        {
+            return Err(bad("roll_search_deg", &deg, "must be 0..=180 degrees"));
         }
         if !(self.camera_roll_deg.is_finite() && (0.0..=180.0).contains(&self.camera_roll_deg)) {
             return Err(bad(
@@ -639,8 +639,30 @@ impl PipelineConfig {
             height,
             distance_m: Some(self.distance_m.unwrap_or(db.train_distance_m as f64)),
             unrated: self.unrated,
-            roll_search_deg: self.roll_search_deg as f32,
+            roll_search_deg: self.roll_search(db),
         })
+    }
+
+    /// The roll search of a run over `db`: `roll_search_deg`, or the one
+    /// its confidence network was trained with.
+    fn roll_search(&self, db: &ViewDatabase) -> f32 {
+        self.roll_search_deg
+            .map_or_else(|| acch_pose::trained_roll_search_deg(db), |d| d as f32)
+    }
+
+    /// Warns, once per run (the launcher calls it), when `roll_search_deg`
+    /// differs from the search `db`'s confidence network was trained with:
+    /// allowed, but the network then rates responses unlike its training's.
+    pub fn warn_on_untrained_roll_search(&self, db: &ViewDatabase) {
+        let trained = acch_pose::trained_roll_search_deg(db);
+        if let Some(deg) = self.roll_search_deg
+            && deg as f32 != trained
+        {
+            tracing::warn!(
+                "roll_search_deg = {deg}, but the confidence network of '{}' was trained with {trained}: `acch train --roll-search-deg {deg}` trains one for it",
+                db.object
+            );
+        }
     }
 }
 

@@ -351,6 +351,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     })?;
     let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
     let db = cfg.database()?;
+    cfg.warn_on_untrained_roll_search(&db);
     let settings = cfg.settings(&db)?;
     let mut chain = Chain::build(&db, &settings)?;
     let views = crate::observers::view_angles(&db);
@@ -455,6 +456,7 @@ pub fn run_processes(
     let _wake_files = acch_ipc::wake::RunFiles::new(&cfg.instance);
     // One clear error here rather than one from every stage process.
     let db = cfg.database()?;
+    cfg.warn_on_untrained_roll_search(&db);
     crate::stages::Stages::new(&db, &cfg.settings(&db)?)?;
     drop(db);
     let stale = remove_stale_resources();

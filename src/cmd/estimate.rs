@@ -100,7 +100,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
                 height: h,
                 distance_m: input.distance_m.map(f64::from),
                 unrated: true,
-                roll_search_deg: 0.0,
+                roll_search_deg: acch_pose::trained_roll_search_deg(&db),
             };
             let mut chain = Chain::build(&db, &settings)?;
             let k = Intrinsics::from(&sized_intrinsics(w, h));
@@ -128,7 +128,12 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
         }
     };
     Ok(Some(Loaded {
-        estimator: PoseEstimator::new(db)?,
+        // The search the confidence network was trained with (none for a
+        // database trained without it).
+        estimator: {
+            let search = acch_pose::trained_roll_search_deg(&db);
+            PoseEstimator::new(db)?.with_roll_search(search)
+        },
         confidence,
         index,
         mask,
@@ -281,6 +286,13 @@ pub fn run(args: EstimateArgs) -> Result<()> {
         "theta {:.1} deg  phi {:.1} deg  match {:.4}  scale {:.3}",
         e.theta_deg, e.phi_deg, e.best_value, e.scale
     );
+    if est.roll_search_deg() > 0.0 {
+        println!(
+            "roll {:.1} deg (searched within ±{:.0})",
+            e.roll_deg,
+            est.roll_search_deg()
+        );
+    }
     if let Some(model) = &mut loaded.confidence {
         if let Some(t) = args.threshold {
             model

@@ -37,16 +37,24 @@ pub struct TrainArgs {
     /// A, B, C, clutter, clutter-similar) to train it on; 0 leaves it out.
     #[arg(long, default_value_t = train::DEFAULT_CONFIDENCE_SCENES)]
     confidence_scenes: usize,
+    /// For a camera that rolls: the pose stage searches the roll within
+    /// ±DEG, the confidence network is trained on the responses of that
+    /// search over scenes rolled as far (every other one; see
+    /// --confidence-roll-deg), and the database records the search, so
+    /// `acch run`, `estimate` and `eval` use it unless told otherwise
+    /// (docs/accuracy.md, "The camera rolls"). 0 (the default): no search,
+    /// image up is the training views' up.
+    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
+    roll_search_deg: f64,
     /// Roll the camera of every other confidence-training scene uniformly
     /// within ±DEG about its optical axis, labelling its estimate by the
-    /// roll too: for a camera that rolls and runs without the roll search,
-    /// the network learns to reject seeds turned by the roll. Measured on
-    /// rolled views without the search, wrong rotations among the accepted
-    /// fell from 53 % to 12 % (fruitbox) and 51 % to 17 % (can), but
-    /// upright acceptance fell from about 100 % to 54-92 %
-    /// (docs/accuracy.md); 0 (the default) keeps the scenes upright.
-    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
-    confidence_roll_deg: f64,
+    /// whole rotation; default: --roll-search-deg. Without the search
+    /// (--roll-search-deg 0) the network learns to reject seeds turned by
+    /// the roll, at a cost: measured, wrong rotations among the accepted
+    /// of rolled views fell from 53 % to 12 % (fruitbox), upright
+    /// acceptance from about 100 % to 54-92 % (docs/accuracy.md).
+    #[arg(long, value_name = "DEG")]
+    confidence_roll_deg: Option<f64>,
     /// Confidence network input: the four response features, or the whole
     /// response.
     #[arg(long, value_enum, default_value = "auto")]
@@ -90,11 +98,18 @@ impl From<ConfidenceInput> for train::ConfidenceInput {
 pub fn run(args: TrainArgs) -> Result<()> {
     let config = args.histogram.train_config()?;
     // Checked before the long training, not after it.
-    if !(args.confidence_roll_deg.is_finite() && (0.0..=180.0).contains(&args.confidence_roll_deg))
-    {
+    let confidence_roll_deg = args.confidence_roll_deg.unwrap_or(args.roll_search_deg);
+    for (name, deg) in [
+        ("--roll-search-deg", args.roll_search_deg),
+        ("--confidence-roll-deg", confidence_roll_deg),
+    ] {
+        if !(deg.is_finite() && (0.0..=180.0).contains(&deg)) {
+            bail!("{name} {deg} must be a finite number of degrees in [0, 180]");
+        }
+    }
+    if args.images.is_some() && args.roll_search_deg > 0.0 {
         bail!(
-            "--confidence-roll-deg {} must be a finite number of degrees in [0, 180]",
-            args.confidence_roll_deg
+            "--roll-search-deg trains the confidence network on rendered scenes; with --images there is none (search the roll at run time with roll_search_deg in the config)"
         );
     }
     if !(0.0..=1.0).contains(&args.confidence_threshold) {
@@ -119,7 +134,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 background: args.background,
                 distance: args.distance,
                 seed: args.seed,
-                confidence_roll_deg: args.confidence_roll_deg,
+                roll: train::ConfidenceRoll {
+                    scenes_deg: confidence_roll_deg,
+                    search_deg: args.roll_search_deg,
+                },
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
             let (mut db, choice) = train::train_object(&object, &config, &training, confidence)?;
@@ -145,5 +163,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
         start.elapsed().as_secs_f64(),
         args.out.display()
     );
+    let search = acch_pose::trained_roll_search_deg(&db);
+    if search > 0.0 {
+        println!(
+            "roll search ±{search}° recorded: acch run, estimate and eval search the roll with this database"
+        );
+    }
     Ok(())
 }

@@ -23,6 +23,37 @@ pub enum PoseError {
     Params(#[from] acch_core::histogram::HistogramError),
 }
 
+/// Section of a [`ViewDatabase`] holding the roll search its confidence
+/// network was trained with (degrees, `f32` little-endian): the network has
+/// seen the responses that search makes, so a run uses it unless told
+/// otherwise. Absent: 0, no search.
+pub const ROLL_SEARCH_SECTION: &str = "roll-search";
+
+/// The roll search `db` was trained with, degrees (0 when it says none).
+/// A section of another length is an old or foreign file: 0 as well.
+pub fn trained_roll_search_deg(db: &ViewDatabase) -> f32 {
+    db.sections
+        .get(ROLL_SEARCH_SECTION)
+        .and_then(|b| <[u8; 4]>::try_from(b.as_slice()).ok())
+        .map(f32::from_le_bytes)
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .unwrap_or(0.0)
+}
+
+/// Records in `db` that its confidence network was trained on responses of
+/// a roll search up to `max_deg` (0 removes the record: a database trained
+/// without the search stays byte-identical to one from before the record).
+pub fn store_roll_search_deg(db: &mut ViewDatabase, max_deg: f32) {
+    if max_deg > 0.0 {
+        db.sections.insert(
+            ROLL_SEARCH_SECTION.to_owned(),
+            max_deg.to_le_bytes().to_vec(),
+        );
+    } else {
+        db.sections.remove(ROLL_SEARCH_SECTION);
+    }
+}
+
 /// One θ slice of the response: consecutive views with the same elevation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Slice {
@@ -491,6 +522,28 @@ mod tests {
         assert_eq!(phi_error(5.0, 355.0), 10.0);
         assert_eq!(phi_error(90.0, 270.0), 180.0);
         assert_eq!(phi_error(10.0, 10.0), 0.0);
+    }
+
+    #[test]
+    fn the_trained_roll_search_is_recorded_and_zero_leaves_no_trace() {
+        let pixels = [[10, 20, 30], [200, 100, 50]];
+        let palette = acch_core::Palette::train(&pixels, 2, acch_core::ColourSpace::Lab, None, 1)
+            .expect("palette");
+        let params = acch_core::HistogramParams {
+            colours: 2,
+            ..Default::default()
+        };
+        let mut db = ViewDatabase::new("cube", palette, params, 1.0);
+        assert_eq!(trained_roll_search_deg(&db), 0.0);
+        store_roll_search_deg(&mut db, 45.0);
+        assert_eq!(trained_roll_search_deg(&db), 45.0);
+        let read = ViewDatabase::from_bytes(&db.to_bytes(), std::path::Path::new("x")).unwrap();
+        assert_eq!(trained_roll_search_deg(&read), 45.0);
+        store_roll_search_deg(&mut db, 0.0);
+        assert!(db.sections.is_empty());
+        // A section of the wrong size is not a search.
+        db.sections.insert(ROLL_SEARCH_SECTION.into(), vec![1, 2]);
+        assert_eq!(trained_roll_search_deg(&db), 0.0);
     }
 
     #[test]
