@@ -47,6 +47,7 @@ fn renderer(object: &Arc<Object>, background: Background, seed: u64, shift_px: f
             intrinsics,
             effects: Default::default(),
             textures: Default::default(),
+            occlusion: 0.0,
         },
         seed,
     )

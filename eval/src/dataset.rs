@@ -63,6 +63,9 @@ pub struct DatasetOptions {
     /// The largest roll the pose stage searches, degrees (0: none); unset:
     /// what the database was trained with.
     pub roll_search_deg: Option<f32>,
+    /// Lights recognition tries when the object is weak or lost
+    /// ([`acch_pipeline::StageSettings::light_search`]).
+    pub light_search: usize,
 }
 
 /// One image's outcome.
@@ -265,6 +268,7 @@ pub fn evaluate(
             roll_search_deg: options
                 .roll_search_deg
                 .unwrap_or_else(|| acch_pose::trained_roll_search_deg(db)),
+            light_search: options.light_search,
         };
         Ok(Sized {
             size,

@@ -7,6 +7,8 @@
 //! - [`sequence`]: camera trajectories, single frames against the seeding
 //!   stage's fused pose, and active re-view after a rejection ([`review`]);
 //! - [`roll`]: a camera that rolls, a database trained to search it;
+//! - [`robust`]: exposure, colour temperature, noise, blur, JPEG,
+//!   occlusion and distance, with and without the light search;
 //! - [`dataset`]: labelled photographs the user brings, a [`bop`] split or
 //!   a folder with labels.csv;
 //! - [`train`]: an object's whole database, and the cached default.
@@ -18,6 +20,7 @@ pub mod bop;
 pub mod dataset;
 pub mod protocol;
 pub mod review;
+pub mod robust;
 pub mod roll;
 pub mod sequence;
 pub mod table1;

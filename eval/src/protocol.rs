@@ -279,15 +279,26 @@ pub fn frame_of(r: &Rendered, sequence: u64, arm: bool, radius_m: f64) -> FrameH
 /// The chain of the deployed stages over `db`, for frames of the default
 /// camera at the known training distance (as every protocol runs it).
 pub fn chain(db: &ViewDatabase) -> Result<Chain, EvalError> {
+    chain_at(db, db.train_distance_m as f64, 0)
+}
+
+/// [`chain`] for a camera `distance_m` metres from the object, trying
+/// `light_search` lights per weak image.
+pub fn chain_at(
+    db: &ViewDatabase,
+    distance_m: f64,
+    light_search: usize,
+) -> Result<Chain, EvalError> {
     let k = acch_capture::Intrinsics::default();
     Ok(Chain::build(
         db,
         &StageSettings {
             width: k.width,
             height: k.height,
-            distance_m: Some(db.train_distance_m as f64),
+            distance_m: Some(distance_m),
             unrated: false,
             roll_search_deg: acch_pose::trained_roll_search_deg(db),
+            light_search,
         },
     )?)
 }

@@ -351,6 +351,7 @@ fn evaluate(
         distance_m: v.known_distance.then_some(db.train_distance_m as f64),
         unrated: true,
         roll_search_deg: v.roll_search_deg as f32,
+        light_search: 0,
     };
     let mut pose = Pose::new(db, &settings)?.with_refinement(v.refinement);
     let mut index = IndexImage::default();

@@ -185,6 +185,7 @@ pub fn table2(
         distance_m: Some(db.train_distance_m as f64),
         unrated: true,
         roll_search_deg: 0.0,
+        light_search: 0,
     };
     // The same pose stage on the true mask, and on the segmented region
     // with the scale read off it.

@@ -191,6 +191,9 @@ pub fn unrated_chain(
         distance_m: Some(distance_m),
         unrated: true,
         roll_search_deg: roll_search_deg as f32,
+        // The scenes are lit as the training views: the database does not
+        // depend on the light search.
+        light_search: 0,
     };
     let mut stages = Stages::new(db, &settings)?;
     stages.confidence = Confidence::unrated(db);

@@ -77,6 +77,20 @@ pub struct PipelineConfig {
     /// The simulated camera rolls about its optical axis within ±this,
     /// degrees (0: upright).
     pub camera_roll_deg: f64,
+    /// The simulated scene's light: its linear exposure against the
+    /// training light's (1: the same).
+    pub camera_exposure: f64,
+    /// The simulated scene's light: its colour temperature, kelvin, for a
+    /// camera white-balanced for the training light's 5000 K.
+    pub camera_colour_temp_k: f64,
+    /// Lights (exposures, colour temperatures) recognition tries in a frame
+    /// whose object is weak or lost under the light in use, going on in
+    /// the next frame where this one stopped (0, the default: the training
+    /// light only). Each costs one more quantisation and scan, and a new
+    /// light its table once; off by default because on flat-coloured
+    /// objects it makes wrong estimates that are accepted
+    /// (docs/accuracy.md).
+    pub light_search_per_frame: usize,
     /// Frames queued for each reader of the frame stream.
     pub frame_history: usize,
     /// Width of the synthetic camera's frames, pixels.
@@ -186,6 +200,9 @@ impl Default for PipelineConfig {
             mesh_unit_m: None,
             roll_search_deg: None,
             camera_roll_deg: 0.0,
+            light_search_per_frame: 0,
+            camera_exposure: 1.0,
+            camera_colour_temp_k: acch_core::light::TRAINING_LIGHT_K as f64,
             background: "A".into(),
             elevation_deg: [lo, hi],
             frames: 300,
@@ -327,6 +344,22 @@ impl PipelineConfig {
             && !(deg.is_finite() && (0.0..=180.0).contains(&deg))
         {
             return Err(bad("roll_search_deg", &deg, "must be 0..=180 degrees"));
+        }
+        if !(self.camera_exposure.is_finite() && self.camera_exposure > 0.0) {
+            return Err(bad(
+                "camera_exposure",
+                &self.camera_exposure,
+                "must be a positive number (1: the training light)",
+            ));
+        }
+        if !(self.camera_colour_temp_k.is_finite()
+            && (1000.0..=15000.0).contains(&self.camera_colour_temp_k))
+        {
+            return Err(bad(
+                "camera_colour_temp_k",
+                &self.camera_colour_temp_k,
+                "must be 1000..=15000 kelvin",
+            ));
         }
         if !(self.camera_roll_deg.is_finite() && (0.0..=180.0).contains(&self.camera_roll_deg)) {
             return Err(bad(
@@ -581,6 +614,10 @@ impl PipelineConfig {
             fps: self.fps,
             elevation_deg: (lo, hi),
             roll_deg: self.camera_roll_deg,
+            light: (
+                self.camera_exposure as f32,
+                self.camera_colour_temp_k as f32,
+            ),
         }))
     }
 
@@ -640,6 +677,7 @@ impl PipelineConfig {
             distance_m: Some(self.distance_m.unwrap_or(db.train_distance_m as f64)),
             unrated: self.unrated,
             roll_search_deg: self.roll_search(db),
+            light_search: self.light_search_per_frame,
         })
     }
 
@@ -715,6 +753,9 @@ mod tests {
             ("width = 0", "width"),
             ("height = 100000", "height"),
             ("frame_history = 0", "frame_history"),
+            ("camera_exposure = 0.0", "camera_exposure"),
+            ("camera_colour_temp_k = 100.0", "camera_colour_temp_k"),
+            ("roll_search_deg = 200.0", "roll_search_deg"),
             ("transport = \"udp\"", "transport"),
             ("replay = \"fast\"", "replay"),
             ("source = \"camera\"", "source"),

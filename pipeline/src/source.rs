@@ -108,6 +108,9 @@ pub struct SyntheticCamera {
     /// The camera rolls about its optical axis within ±this, degrees
     /// (0: it stays upright).
     pub roll_deg: f64,
+    /// The scene's light against the training light's: its linear
+    /// exposure and colour temperature, kelvin (`acch_capture::Effects`).
+    pub light: (f32, f32),
 }
 
 impl SyntheticCamera {
@@ -430,8 +433,13 @@ impl Source {
                         object: c.object.clone(),
                         background: c.background,
                         intrinsics: c.intrinsics(),
-                        effects: Default::default(),
+                        effects: acch_capture::Effects {
+                            exposure: c.light.0,
+                            colour_temp_k: c.light.1,
+                            ..Default::default()
+                        },
                         textures: c.textures,
+                        occlusion: 0.0,
                     },
                     c.seed,
                 );

@@ -53,6 +53,7 @@ fn settings(unrated: bool) -> StageSettings {
         distance_m: Some(DEFAULT_DISTANCE * Object::builtin("fruitbox").unwrap().radius_m()),
         unrated,
         roll_search_deg: 0.0,
+        light_search: 0,
     }
 }
 

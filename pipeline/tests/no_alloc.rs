@@ -174,6 +174,7 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         // The roll search too: its shortlist and turned histogram are
         // the estimator's own buffers.
         roll_search_deg: 45.0,
+        light_search: 0,
     };
     let mut chain = Chain::build(&db, &settings).unwrap();
     let mut json = JsonWriter::default();

@@ -101,6 +101,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
                 distance_m: input.distance_m.map(f64::from),
                 unrated: true,
                 roll_search_deg: acch_pose::trained_roll_search_deg(&db),
+                light_search: 0,
             };
             let mut chain = Chain::build(&db, &settings)?;
             let k = Intrinsics::from(&sized_intrinsics(w, h));

@@ -84,7 +84,9 @@ pub struct RenderArgs {
     )]
     blur: f32,
 
-    /// Brightness factor applied to every pixel (exposure change). 1 = unchanged.
+    /// Brightness factor applied to every byte of every pixel. 1 =
+    /// unchanged. Harsher at the bright end than a change of light or
+    /// exposure (x1.4 clips every byte above 182): see --exposure.
     #[arg(
         long,
         value_name = "B",
@@ -92,6 +94,50 @@ pub struct RenderArgs {
         allow_negative_numbers = true
     )]
     brightness: f32,
+
+    /// Exposure: multiplies the light's linear intensity before the sRGB
+    /// encoding, as the light's strength, the camera's exposure time or its
+    /// gain do (saturating at white). 1 = the training light.
+    #[arg(
+        long,
+        value_name = "X",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
+    exposure: f32,
+
+    /// Colour temperature of the scene's light, kelvin (1000-15000), for a
+    /// camera white-balanced for the training light's 5000 K: 3000 is
+    /// tungsten-warm (red up, blue down), 6500 daylight-cool.
+    #[arg(long, value_name = "K", default_value_t = acch_core::light::TRAINING_LIGHT_K)]
+    colour_temp_k: f32,
+
+    /// Vignetting: the light at the image corners falls to 1 - V of the
+    /// centre's (quadratically in the radius). 0 = none.
+    #[arg(
+        long,
+        value_name = "V",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    vignetting: f32,
+
+    /// Compress every image as JPEG of this quality (1-100) and decode it
+    /// again, as a camera streaming MJPEG delivers it. 0 = none (PNG as
+    /// rendered).
+    #[arg(long, value_name = "Q", default_value_t = 0)]
+    jpeg_quality: u8,
+
+    /// Hide this share (0-1) of the object's width behind a dark grey bar
+    /// in front of it, full height, at a place drawn per view (a gripper's
+    /// finger); the mask keeps what stays visible. 0 = none.
+    #[arg(
+        long,
+        value_name = "SHARE",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    occlusion: f32,
 
     /// Image width in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
@@ -171,10 +217,30 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ("--noise", args.noise),
         ("--blur", args.blur),
         ("--brightness", args.brightness),
+        ("--exposure", args.exposure),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             bail!("{name} {v} must be a finite number >= 0");
         }
+    }
+    for (name, v, range) in [
+        ("--colour-temp-k", args.colour_temp_k, 1000.0..=15000.0),
+        ("--vignetting", args.vignetting, 0.0..=1.0),
+        ("--occlusion", args.occlusion, 0.0..=1.0),
+    ] {
+        if !(v.is_finite() && range.contains(&v)) {
+            bail!(
+                "{name} {v} must be a finite number in [{}, {}]",
+                range.start(),
+                range.end()
+            );
+        }
+    }
+    if args.jpeg_quality > 100 {
+        bail!(
+            "--jpeg-quality {} must be 1-100, or 0 for none",
+            args.jpeg_quality
+        );
     }
     if !(args.roll_deg.is_finite() && (0.0..=180.0).contains(&args.roll_deg)) {
         bail!(
@@ -212,8 +278,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
             noise_sigma: args.noise,
             blur_sigma: args.blur,
             brightness: args.brightness,
+            exposure: args.exposure,
+            colour_temp_k: args.colour_temp_k,
+            vignetting: args.vignetting,
+            jpeg_quality: args.jpeg_quality,
         },
         textures: args.textures,
+        occlusion: args.occlusion,
     };
     let start = Instant::now();
     let renderer = Renderer::new(config, args.seed);
@@ -378,7 +449,16 @@ fn write_truth(
                 "bbox": truth.bbox,
                 "scene_seed": args.seed,
                 "frame_seed": frame_seed,
-                "effects": {"noise": args.noise, "blur": args.blur, "brightness": args.brightness},
+                "effects": {
+                    "noise": args.noise,
+                    "blur": args.blur,
+                    "brightness": args.brightness,
+                    "exposure": args.exposure,
+                    "colour_temp_k": args.colour_temp_k,
+                    "vignetting": args.vignetting,
+                    "jpeg_quality": args.jpeg_quality,
+                    "occlusion": args.occlusion,
+                },
             });
             serde_json::to_writer(&mut w, &line)?;
             w.write_all(b"\n")?;

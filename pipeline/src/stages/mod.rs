@@ -17,6 +17,13 @@ pub use segmentation::{RegionPayload, Segmentation, Segmented};
 
 use acch_core::ViewDatabase;
 
+/// Lights recognition tries in a weak single image when the light search
+/// is on (`acch eval --light-search`, the robust protocol): all of them
+/// ([`StageSettings::light_search`]). It is off by default: on an object
+/// of flat, exact colours it turns "not found" into wrong estimates the
+/// confidence network accepts (docs/accuracy.md).
+pub const SINGLE_IMAGE_LIGHT_SEARCH: usize = acch_recognition::CANDIDATES;
+
 /// What every stage is built with besides the database.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StageSettings {
@@ -35,6 +42,10 @@ pub struct StageSettings {
     /// stage searches, degrees either way (0: none; the image's up is the
     /// training views' up).
     pub roll_search_deg: f32,
+    /// Lights (exposures) recognition tries in a frame whose object is
+    /// weak or lost under the light in use ([`acch_recognition::LightSearch`]):
+    /// 0 never leaves the training light; `usize::MAX` tries them all.
+    pub light_search: usize,
 }
 
 impl StageSettings {

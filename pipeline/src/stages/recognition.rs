@@ -11,10 +11,10 @@ use super::{BuildError, StageSettings};
 use crate::frame::FrameHeader;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, StageId};
-use acch_core::{IndexView, Palette, ViewDatabase};
+use acch_core::{IndexView, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_recognition::{
-    CellRect, CountLayout, Detection, Detector, RecognitionModel, RegionCounts,
+    CellRect, CountLayout, Detection, Detector, LightSearch, RecognitionModel, RegionCounts,
 };
 
 /// A rectangle of grid cells, `[x0, x1) x [y0, y1)`.
@@ -141,7 +141,7 @@ impl<'a> RecognitionPayload<'a> {
 
 /// The recognition stage.
 pub struct Recognition {
-    palette: Palette,
+    lights: LightSearch,
     detector: Detector,
     scale: Option<f32>,
     size: (u32, u32),
@@ -152,7 +152,7 @@ impl Recognition {
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
         let model = recognition_model(db)?;
         Ok(Recognition {
-            palette: db.palette.clone(),
+            lights: LightSearch::new(&db.palette, settings.light_search),
             detector: Detector::new(model, settings.width, settings.height)?,
             scale: settings.scale(db),
             size: (settings.width, settings.height),
@@ -202,9 +202,10 @@ impl Stage for Recognition {
         // Quantised straight into the output: later stages read these
         // indices where they are.
         let (index_out, counts_out) = out.split_at_mut(self.pixels());
-        self.palette.quantise_into_slice(rgb, index_out);
-        let index = IndexView::new(w, h, index_out).ok_or(Fault::FrameSize)?;
-        let Some(d) = self.detector.detect(index, self.scale) else {
+        let found = self
+            .lights
+            .detect(&mut self.detector, rgb, (w, h), index_out, self.scale);
+        let Some(d) = found else {
             return Ok(Outcome::Nothing);
         };
         let region = self.detector.region_counts(&d).ok_or(Fault::Payload)?;

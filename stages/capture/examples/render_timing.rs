@@ -22,6 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     noise_sigma: 4.0,
                     blur_sigma: 1.0,
                     brightness: 0.9,
+                    ..Effects::default()
                 },
             ] {
                 let mut config = SceneConfig::new(object.clone(), bg.parse()?);

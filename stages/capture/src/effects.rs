@@ -1,10 +1,16 @@
-//! Image degradations: Gaussian blur, brightness change and sensor noise.
+//! Image degradations: the light (exposure, colour temperature,
+//! vignetting), Gaussian blur, a brightness change of the bytes, sensor
+//! noise and JPEG compression.
 
+use acch_core::light::{
+    TRAINING_LIGHT_K, colour_temperature_gains, linear_to_srgb, srgb_to_linear,
+};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// Optional degradations applied after rendering, in this order: blur,
-/// brightness, noise. The mask is never affected.
+/// Optional degradations applied after rendering, in this order: the light
+/// (on linear colour: exposure, colour temperature, vignetting), blur,
+/// brightness (on the bytes), noise, JPEG. The mask is never affected.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Effects {
     /// Standard deviation of additive, approximately Gaussian per-channel
@@ -13,17 +19,45 @@ pub struct Effects {
     /// Standard deviation in pixels of a Gaussian blur (defocus/motion
     /// stand-in); 0 = none. The kernel is cut at 3 sigma, at most 50 pixels.
     pub blur_sigma: f32,
-    /// Multiplies every channel (exposure change); 1 = unchanged.
+    /// Multiplies every byte of every channel; 1 = unchanged. Harsher at
+    /// the bright end than a camera's exposure: x1.4 clips every byte above
+    /// 182 (see `exposure`).
     pub brightness: f32,
+    /// Multiplies the linear colour, as the light's intensity or the
+    /// camera's exposure time and gain do before the sRGB encoding; 1 =
+    /// unchanged.
+    pub exposure: f32,
+    /// Colour temperature of the scene's light, kelvin, against the
+    /// camera's white balance for the training light (5000 K): lower is
+    /// warmer (redder), higher cooler ([`colour_temperature_gains`]).
+    pub colour_temp_k: f32,
+    /// Light falloff towards the corners: the linear colour at the image
+    /// corners is multiplied by 1 - this, quadratically in the radius; 0 =
+    /// none.
+    pub vignetting: f32,
+    /// JPEG quality 1-100 the frame is compressed with and decoded again;
+    /// 0 = none.
+    pub jpeg_quality: u8,
+}
+
+impl Effects {
+    /// Whether the light differs from the training light.
+    fn relit(&self) -> bool {
+        self.exposure != 1.0 || self.colour_temp_k != TRAINING_LIGHT_K || self.vignetting != 0.0
+    }
 }
 
 impl Default for Effects {
-    /// No noise, no blur, brightness 1.
+    /// The training light, no noise, no blur, brightness 1, no JPEG.
     fn default() -> Self {
         Effects {
             noise_sigma: 0.0,
             blur_sigma: 0.0,
             brightness: 1.0,
+            exposure: 1.0,
+            colour_temp_k: TRAINING_LIGHT_K,
+            vignetting: 0.0,
+            jpeg_quality: 0,
         }
     }
 }
@@ -39,6 +73,9 @@ pub(crate) fn apply(
     seed: u64,
     tmp: &mut Vec<f32>,
 ) {
+    if fx.relit() {
+        light(rgb, w, h, fx);
+    }
     if fx.blur_sigma.is_finite() && fx.blur_sigma > 0.0 {
         blur(rgb, w, h, fx.blur_sigma, tmp);
     }
@@ -66,6 +103,59 @@ pub(crate) fn apply(
     } else if gain != 1.0 {
         for v in rgb.iter_mut() {
             *v = (*v as f32 * gain + 0.5).clamp(0.0, 255.0) as u8;
+        }
+    }
+    if (1..=100).contains(&fx.jpeg_quality) {
+        jpeg(rgb, w, h, fx.jpeg_quality);
+    }
+}
+
+/// The light: each linear channel times exposure, the colour
+/// temperature's gain and the vignetting falloff at the pixel.
+fn light(rgb: &mut [u8], w: usize, h: usize, fx: &Effects) {
+    let finite = |v: f32, default: f32| {
+        if v.is_finite() && v >= 0.0 {
+            v
+        } else {
+            default
+        }
+    };
+    let exposure = finite(fx.exposure, 1.0);
+    let cast = colour_temperature_gains(finite(fx.colour_temp_k, TRAINING_LIGHT_K));
+    let vignetting = finite(fx.vignetting, 0.0).min(1.0);
+    let decode: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
+    let (cx, cy) = ((w as f32 - 1.0) / 2.0, (h as f32 - 1.0) / 2.0);
+    let corner2 = (cx * cx + cy * cy).max(1.0);
+    for (i, px) in rgb.chunks_exact_mut(3).enumerate() {
+        let (x, y) = ((i % w) as f32 - cx, (i / w) as f32 - cy);
+        let falloff = 1.0 - vignetting * (x * x + y * y) / corner2;
+        for (c, v) in px.iter_mut().enumerate() {
+            *v = linear_to_srgb(decode[*v as usize] * exposure * cast[c] * falloff);
+        }
+    }
+}
+
+/// Compresses the frame as JPEG of `quality` and decodes it again, as a
+/// camera streaming MJPEG delivers it.
+fn jpeg(rgb: &mut [u8], w: usize, h: usize, quality: u8) {
+    let mut bytes = Vec::new();
+    let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut bytes, quality);
+    let encoded = image::ImageEncoder::write_image(
+        encoder,
+        rgb,
+        w as u32,
+        h as u32,
+        image::ExtendedColorType::Rgb8,
+    );
+    // An in-memory encoding of a well-formed buffer does not fail; if it
+    // ever did, the frame stays uncompressed rather than corrupt.
+    if encoded.is_err() {
+        return;
+    }
+    if let Ok(decoded) = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg) {
+        let decoded = decoded.to_rgb8();
+        if decoded.as_raw().len() == rgb.len() {
+            rgb.copy_from_slice(decoded.as_raw());
         }
     }
 }

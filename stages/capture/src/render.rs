@@ -30,6 +30,11 @@ pub struct SceneConfig {
     pub effects: Effects,
     /// Which instance of the table texture the background shows.
     pub textures: TextureSet,
+    /// Share of the object's width (0-1) a bar in front of it hides, as a
+    /// gripper's finger or a pole would: full height, dark grey, at a place
+    /// drawn from the frame seed; the mask keeps only what stays visible.
+    /// 0 = none.
+    pub occlusion: f32,
 }
 
 impl SceneConfig {
@@ -41,6 +46,7 @@ impl SceneConfig {
             intrinsics: Intrinsics::default(),
             effects: Effects::default(),
             textures: TextureSet::default(),
+            occlusion: 0.0,
         }
     }
 
@@ -241,6 +247,10 @@ impl Renderer {
                 let cam_from_obj = camera_from_world * d.world_from_object;
                 draw_object(&mut frame, &d.object, &cam_from_obj, light_cam, &k, 0);
             }
+            let share = self.config.occlusion;
+            if share.is_finite() && share > 0.0 {
+                occlude(&mut out.image, &mut out.mask, share.min(1.0), frame_seed);
+            }
             effects::apply(
                 &mut out.image,
                 wu,
@@ -259,6 +269,35 @@ impl Renderer {
             intrinsics: k,
             bbox: mask_bbox(&out.mask),
         };
+    }
+}
+
+/// Grey of the occluding bar (a gripper finger's anodised aluminium).
+const OCCLUDER_RGB: [f32; 3] = [70.0, 72.0, 78.0];
+
+/// Hides `share` of the object's width behind a vertical bar at a place
+/// drawn from `seed`: the bar spans the object's height and a tenth more
+/// either way, shaded lighter towards its middle like a cylinder, and
+/// clears the mask under it.
+fn occlude(image: &mut RgbImage, mask: &mut GrayImage, share: f32, seed: u64) {
+    use rand::{Rng, SeedableRng};
+    let Some(b) = mask_bbox(mask) else {
+        return;
+    };
+    let bar = ((b.width as f32 * share).round() as u32).clamp(1, b.width);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x6f63_636c_7564_6572);
+    let x0 = b.x + rng.random_range(0..=b.width - bar);
+    let (w, h) = mask.dimensions();
+    let margin = b.height / 10;
+    let (y0, y1) = (b.y.saturating_sub(margin), (b.y + b.height + margin).min(h));
+    for x in x0..(x0 + bar).min(w) {
+        let across = (x - x0) as f32 / bar.max(1) as f32 * 2.0 - 1.0;
+        let shade = 0.75 + 0.35 * (1.0 - across * across).sqrt();
+        let c = OCCLUDER_RGB.map(|v| (v * shade).round().clamp(0.0, 255.0) as u8);
+        for y in y0..y1 {
+            image.put_pixel(x, y, image::Rgb(c));
+            mask.put_pixel(x, y, image::Luma([0]));
+        }
     }
 }
 

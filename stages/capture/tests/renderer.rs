@@ -244,6 +244,7 @@ fn same_seed_same_bytes_and_noise_depends_on_the_frame_seed() {
         noise_sigma: 6.0,
         blur_sigma: 0.8,
         brightness: 0.9,
+        ..Effects::default()
     };
     let a = renderer("can", Background::Clutter, fx, 7).render(&view(55.0, 123.0), 42);
     let b = renderer("can", Background::Clutter, fx, 7).render(&view(55.0, 123.0), 42);

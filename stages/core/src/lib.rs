@@ -9,6 +9,7 @@
 
 pub mod database;
 pub mod histogram;
+pub mod light;
 pub mod palette;
 
 pub use database::{DbError, View, ViewDatabase};

@@ -1,6 +1,7 @@
 //! Colour palette: C representative colours of an object learned by k-means,
 //! and an O(1) lookup table from RGB to palette index.
 
+use crate::light::{linear_to_srgb, srgb_to_linear};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -193,6 +194,13 @@ impl Palette {
     }
 
     fn build_lut(&mut self) {
+        self.build_lut_under([1.0; 3]);
+    }
+
+    /// The lookup table for a camera whose light multiplies each linear
+    /// channel of the colours the palette was learnt under by `gains`
+    /// ([`crate::light`]): a cell stands for its colour divided by them.
+    fn build_lut_under(&mut self, gains: [f32; 3]) {
         let step = 256 / LUT_SIDE;
         let reject = self.reject_distance.max(self.space.lut_radius());
         let reject2 = reject * reject;
@@ -201,12 +209,31 @@ impl Palette {
                 for b in 0..LUT_SIDE {
                     // Each cell stands for the centre of its 4x4x4 RGB block.
                     let rgb = [r, g, b].map(|c| (c * step + step / 2) as u8);
+                    let rgb = [0, 1, 2].map(|k| match gains[k] {
+                        1.0 => rgb[k],
+                        g => crate::light::relight(rgb[k], 1.0 / g),
+                    });
                     let (i, d2) = nearest(&self.centres, &self.space.convert(rgb));
                     self.lut[(r * LUT_SIDE + g) * LUT_SIDE + b] =
                         if d2 <= reject2 { i as u8 } else { NOT_OBJECT };
                 }
             }
         }
+    }
+
+    /// The same colours seen under other light: the light multiplies each
+    /// linear channel of the colours the palette was learnt under by
+    /// `gains` (an exposure change all three alike, a colour cast each its
+    /// own, [`crate::light`]), and the lookup table maps what the camera
+    /// then delivers back to the learnt colour. Gains of 1 give this palette; non-finite or
+    /// non-positive gains are refused.
+    pub fn relit(&self, gains: [f32; 3]) -> Result<Palette, PaletteError> {
+        if gains.iter().any(|g| !g.is_finite() || *g <= 0.0) {
+            return Err(PaletteError::NotFinite);
+        }
+        let mut palette = self.clone();
+        palette.build_lut_under(gains);
+        Ok(palette)
     }
 
     /// Number of colours C.
@@ -454,25 +481,6 @@ fn kmeans(points: &[[f32; 3]], k: usize, iterations: usize, rng: &mut ChaCha8Rng
     centres
 }
 
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(c: f32) -> u8 {
-    let c = c.clamp(0.0, 1.0);
-    let v = if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (v * 255.0).round() as u8
-}
-
 const WHITE: [f32; 3] = [0.950_47, 1.0, 1.088_83];
 
 fn lab_f(t: f32) -> f32 {
@@ -562,6 +570,31 @@ mod tests {
                 "{space:?}: {radius} is loose for {widest}"
             );
         }
+    }
+
+    #[test]
+    fn a_relit_palette_maps_colours_under_the_other_light_back() {
+        let colours = [
+            [200u8, 30, 30],
+            [30, 30, 200],
+            [240, 240, 240],
+            [90, 160, 60],
+        ];
+        let centres = colours
+            .iter()
+            .map(|&c| ColourSpace::Lab.convert(c))
+            .collect();
+        let p = Palette::from_centres(ColourSpace::Lab, centres, 8.0).expect("palette");
+        let gains = [0.5, 0.45, 0.35];
+        let relit = p.relit(gains).unwrap();
+        for (i, c) in colours.iter().enumerate() {
+            let seen = [0, 1, 2].map(|k| crate::light::relight(c[k], gains[k]));
+            assert_eq!(relit.index(seen), i as u8, "{c:?} seen as {seen:?}");
+            assert_eq!(p.index(seen), NOT_OBJECT, "{c:?} seen as {seen:?}");
+        }
+        assert_eq!(p.relit([1.0; 3]).unwrap().lut, p.lut);
+        assert!(p.relit([1.0, f32::NAN, 1.0]).is_err());
+        assert!(p.relit([1.0, 0.0, 1.0]).is_err());
     }
 
     #[test]

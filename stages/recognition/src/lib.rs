@@ -48,10 +48,12 @@
 
 mod counts;
 mod detector;
+mod light;
 mod model;
 
 pub use counts::{ColourCounts, CountLayout, MAX_FEATURES, RegionCounts};
 pub use detector::{CellRect, Detection, Detector, HeatMap};
+pub use light::{CANDIDATES, COLOUR_TEMPERATURES_K, EXPOSURES, LightSearch, WEAK_SCORE_FRACTION};
 pub use model::{MODEL_VERSION, RecognitionError, RecognitionModel, RecognitionParams, SECTION};
 
 #[cfg(test)]
@@ -161,6 +163,55 @@ mod tests {
         assert_eq!(heat.scores.len(), heat.width * heat.height);
         let best = heat.scores.iter().copied().fold(0.0, f32::max);
         assert_eq!(best, d.score);
+    }
+
+    #[test]
+    fn the_light_search_finds_an_object_in_dim_light_and_nothing_in_an_empty_frame() {
+        let mut det = Detector::new(model(), W, H).unwrap();
+        let mut indices = vec![0u8; (W * H) as usize];
+        let (rgb, _) = frame(Some((84, 24)), noisy);
+        let dim: Vec<u8> = rgb
+            .iter()
+            .map(|&c| acch_core::light::relight(c, EXPOSURES[2]))
+            .collect();
+        // Under the training light alone the dim object is lost.
+        let mut off = LightSearch::new(&palette(), 0);
+        assert!(
+            off.detect(&mut det, &dim, (W, H), &mut indices, None)
+                .is_none()
+        );
+        let mut search = LightSearch::new(&palette(), CANDIDATES);
+        let d = search
+            .detect(&mut det, &dim, (W, H), &mut indices, None)
+            .expect("found under the light searched");
+        let (cx, cy) = (
+            d.window.x + d.window.width / 2,
+            d.window.y + d.window.height / 2,
+        );
+        assert!((84..124).contains(&cx) && (24..64).contains(&cy), "{d:?}");
+        // This palette's colours are far apart: a light a step off maps
+        // them as well, and the first of equals is kept.
+        let g = search.gains();
+        assert!(
+            g.iter().all(|g| (EXPOSURES[0]..=EXPOSURES[4]).contains(g)),
+            "{g:?}"
+        );
+        // The indices left are the frame under that light: the object's.
+        assert_eq!(indices, quantised(&rgb).data);
+        // A clean frame is the training light's, found at once.
+        assert!(
+            search
+                .detect(&mut det, &rgb, (W, H), &mut indices, None)
+                .is_some()
+        );
+        assert_eq!(search.gains(), [1.0; 3]);
+        // No light makes an object of a frame without one.
+        let (empty, _) = frame(None, noisy);
+        assert!(
+            search
+                .detect(&mut det, &empty, (W, H), &mut indices, None)
+                .is_none()
+        );
     }
 
     /// Every cell count of `r` and the sums over every rectangle of `rects`

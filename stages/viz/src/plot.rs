@@ -252,3 +252,96 @@ pub fn reliability_diagram(
         Ok(())
     })
 }
+
+/// One line of a [`panels`] plot.
+pub struct Series {
+    /// Legend name.
+    pub name: String,
+    /// (x, y) points, drawn in order.
+    pub points: Vec<(f64, f64)>,
+    /// A y drawn as a dashed line across the panel (the unperturbed value).
+    pub reference: Option<f64>,
+}
+
+/// One panel of a [`panels`] plot: its own x axis, y in [0, 1].
+pub struct Panel {
+    /// Panel title (what x is).
+    pub title: String,
+    /// Its lines.
+    pub series: Vec<Series>,
+}
+
+/// A grid of small line plots sharing a y axis in [0, 1] (rates), four
+/// per row, with markers at the points and each series' reference as a
+/// dashed line.
+pub fn panels(path: &Path, title: &str, y_desc: &str, panels: &[Panel]) -> Result<(), PlotError> {
+    let e = draw_err;
+    let colours = [BLUE, RED, GREEN, MAGENTA];
+    let cols = 4usize;
+    let rows = panels.len().div_ceil(cols).max(1);
+    draw_png(path, (1280, 60 + 300 * rows as u32), |root| {
+        let root = root.titled(title, ("sans-serif", 20)).map_err(e)?;
+        let areas = root.split_evenly((rows, cols));
+        for (panel, area) in panels.iter().zip(areas.iter()) {
+            let xs = panel
+                .series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.0));
+            let (lo, hi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            });
+            let (lo, hi) = if lo < hi {
+                let pad = 0.05 * (hi - lo);
+                (lo - pad, hi + pad)
+            } else {
+                (lo - 1.0, lo + 1.0)
+            };
+            let mut chart = ChartBuilder::on(area)
+                .caption(&panel.title, ("sans-serif", 15))
+                .margin(10)
+                .x_label_area_size(28)
+                .y_label_area_size(40)
+                .build_cartesian_2d(lo..hi, 0f64..1f64)
+                .map_err(e)?;
+            chart
+                .configure_mesh()
+                .y_desc(y_desc)
+                .x_labels(6)
+                .y_labels(6)
+                .draw()
+                .map_err(e)?;
+            for (k, s) in panel.series.iter().enumerate() {
+                let colour = colours[k % colours.len()];
+                if let Some(y) = s.reference {
+                    chart
+                        .draw_series(DashedLineSeries::new(
+                            vec![(lo, y), (hi, y)],
+                            6,
+                            4,
+                            colour.mix(0.5).stroke_width(1),
+                        ))
+                        .map_err(e)?;
+                }
+                chart
+                    .draw_series(LineSeries::new(s.points.clone(), colour.stroke_width(2)))
+                    .map_err(e)?
+                    .label(&s.name)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], colour.stroke_width(2))
+                    });
+                chart
+                    .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+                    .map_err(e)?;
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 12))
+                .draw()
+                .map_err(e)?;
+        }
+        Ok(())
+    })
+}

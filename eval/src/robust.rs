@@ -1,0 +1,411 @@
+//! Beyond the paper: imaging as a robot's camera does it. The deployed
+//! chain (recognition with its light search, segmentation, pose,
+//! confidence) on random poses over backgrounds A, B and C, each scene
+//! rendered clean and under one perturbation per family and level: the
+//! light's exposure and colour temperature, a byte brightness change,
+//! sensor noise, blur, JPEG, an occluding bar and the camera's distance.
+//! The database is the object's default one, trained on clean views
+//! under the training light. With `compare`, the same scenes without the
+//! light search beside it.
+
+use crate::protocol::{self, fails};
+use crate::{EvalError, write_json};
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewSpec,
+};
+use acch_core::ViewDatabase;
+use acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH;
+use acch_pose::phi_error;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// One perturbation family and its levels.
+pub struct Family {
+    /// Its name in the rows.
+    pub name: &'static str,
+    /// What the level means.
+    pub unit: &'static str,
+    /// The levels measured.
+    pub levels: &'static [f64],
+}
+
+/// The families and levels measured; the clean scene is level "clean" of
+/// every family's row set.
+pub const FAMILIES: [Family; 8] = [
+    Family {
+        name: "exposure",
+        unit: "x linear light",
+        levels: &[0.5, 0.6, 0.8, 1.25, 1.5, 2.0],
+    },
+    Family {
+        name: "brightness",
+        unit: "x sRGB bytes",
+        levels: &[0.6, 0.8, 1.25, 1.5],
+    },
+    Family {
+        name: "colour_temperature",
+        unit: "K (training light 5000 K)",
+        levels: &[3000.0, 3500.0, 4250.0, 5750.0, 6500.0, 7500.0],
+    },
+    Family {
+        name: "noise",
+        unit: "sigma, grey levels",
+        levels: &[2.0, 4.0, 6.0],
+    },
+    Family {
+        name: "blur",
+        unit: "sigma, px",
+        levels: &[0.5, 1.0, 2.0],
+    },
+    Family {
+        name: "jpeg",
+        unit: "quality",
+        levels: &[90.0, 75.0, 60.0],
+    },
+    Family {
+        name: "occlusion",
+        unit: "share of the width",
+        levels: &[0.1, 0.2, 0.3],
+    },
+    Family {
+        name: "distance",
+        unit: "x training distance",
+        levels: &[0.7, 0.85, 1.25, 1.5],
+    },
+];
+
+/// The backgrounds measured.
+const BACKGROUNDS: [&str; 3] = ["A", "B", "C"];
+
+/// Options of the robust protocol.
+#[derive(Clone, Debug)]
+pub struct RobustOptions {
+    /// Random test poses per background.
+    pub n: usize,
+    /// Seed of the poses and the scenes.
+    pub seed: u64,
+    /// Also run without the light search.
+    pub compare: bool,
+    /// The families to measure (by [`Family::name`]); empty: all.
+    pub families: Vec<String>,
+}
+
+/// One row: a family at a level, over every background.
+#[derive(Clone, Debug, Serialize)]
+pub struct RobustRow {
+    /// Perturbation family ("clean" for none).
+    pub family: String,
+    /// Its level (0 for clean).
+    pub level: f64,
+    /// Whether recognition searched the light.
+    pub light_search: bool,
+    /// Test images.
+    pub n: usize,
+    /// Share in which the object was not found.
+    pub not_found_rate: f64,
+    /// Share of failures before the confidence network: the paper's rule,
+    /// or not found.
+    pub failure_rate: f64,
+    /// Share accepted by the confidence network.
+    pub accepted_rate: f64,
+    /// Failures among the accepted.
+    pub acc_failure_rate: f64,
+    /// Mean |Δφ| over the estimates, degrees.
+    pub mean_phi_err_deg: f64,
+    /// Mean |Δθ| over the estimates, degrees.
+    pub mean_theta_err_deg: f64,
+}
+
+/// The robust protocol's report.
+#[derive(Serialize, Debug)]
+pub struct RobustReport {
+    /// "robust".
+    pub protocol: &'static str,
+    /// The object.
+    pub object: String,
+    /// Test poses per background.
+    pub n: usize,
+    /// Seed of the poses and scenes.
+    pub seed: u64,
+    /// The backgrounds.
+    pub backgrounds: Vec<String>,
+    /// The rows, clean first.
+    pub rows: Vec<RobustRow>,
+    /// Time of the whole protocol, s.
+    pub total_seconds: f64,
+}
+
+/// The scene configuration of `family` at `level` (None: clean).
+fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneConfig {
+    let fx = &mut config.effects;
+    match condition {
+        None => {}
+        Some(("exposure", v)) => fx.exposure = v as f32,
+        Some(("brightness", v)) => fx.brightness = v as f32,
+        Some(("colour_temperature", v)) => fx.colour_temp_k = v as f32,
+        Some(("noise", v)) => fx.noise_sigma = v as f32,
+        Some(("blur", v)) => fx.blur_sigma = v as f32,
+        Some(("jpeg", v)) => fx.jpeg_quality = v as u8,
+        Some(("occlusion", v)) => config.occlusion = v as f32,
+        // The camera's distance is the view's, not the scene's.
+        Some(_) => {}
+    }
+    config
+}
+
+/// Runs the robust protocol for `object` on its default database `db`.
+pub fn robust(
+    object: Arc<Object>,
+    db: &ViewDatabase,
+    options: &RobustOptions,
+) -> Result<RobustReport, EvalError> {
+    let o = options;
+    if o.n == 0 {
+        return Err(EvalError::Input("--n must be at least 1".into()));
+    }
+    if let Some(bad) = o
+        .families
+        .iter()
+        .find(|f| !FAMILIES.iter().any(|k| k.name == *f))
+    {
+        let names: Vec<&str> = FAMILIES.iter().map(|f| f.name).collect();
+        return Err(EvalError::Input(format!(
+            "--families: no family '{bad}' (there are {})",
+            names.join(", ")
+        )));
+    }
+    let start = Instant::now();
+    let views = ViewSpec::Random { n: o.n }.views(DEFAULT_DISTANCE, o.seed);
+    let mut conditions: Vec<Option<(&str, f64)>> = vec![None];
+    for f in FAMILIES
+        .iter()
+        .filter(|f| o.families.is_empty() || o.families.iter().any(|n| n == f.name))
+    {
+        conditions.extend(f.levels.iter().map(|&l| Some((f.name, l))));
+    }
+    let searches: &[usize] = if o.compare {
+        &[SINGLE_IMAGE_LIGHT_SEARCH, 0]
+    } else {
+        &[SINGLE_IMAGE_LIGHT_SEARCH]
+    };
+    let bar = protocol::progress((conditions.len() * BACKGROUNDS.len()) as u64, "conditions");
+    let mut rows = Vec::new();
+    for condition in &conditions {
+        let distance = match condition {
+            Some(("distance", v)) => *v,
+            _ => 1.0,
+        };
+        let mut scenes = Vec::new();
+        for (b, name) in BACKGROUNDS.iter().enumerate() {
+            let background: Background = name.parse()?;
+            let base =
+                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+            let seed = protocol::scene_seed(o.seed, b, 0, 0x726f_6275);
+            let renderer = Renderer::new(perturbed(base, *condition), seed);
+            let set: Vec<Rendered> = views
+                .par_iter()
+                .enumerate()
+                .map(|(i, v)| -> Result<Rendered, EvalError> {
+                    let v = acch_capture::ViewPose {
+                        distance: v.distance * distance,
+                        ..*v
+                    };
+                    Ok(renderer.render(&v, acch_capture::frame_seed(seed, i)))
+                })
+                .collect::<Result<_, _>>()?;
+            scenes.extend(set);
+            bar.inc(1);
+        }
+        for &search in searches {
+            let distance_m = db.train_distance_m as f64 * distance;
+            let mut row = measure(db, &scenes, object.radius_m(), distance_m, search)?;
+            let (family, level) = condition.unwrap_or(("clean", 0.0));
+            row.family = family.to_owned();
+            row.level = level;
+            rows.push(row);
+        }
+    }
+    bar.finish_and_clear();
+    Ok(RobustReport {
+        protocol: "robust",
+        object: object.name().to_owned(),
+        n: o.n,
+        seed: o.seed,
+        backgrounds: BACKGROUNDS.iter().map(|b| b.to_string()).collect(),
+        rows,
+        total_seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// What became of one scene's estimate.
+struct Estimated {
+    failed: bool,
+    accepted: bool,
+    phi_err_deg: f64,
+    theta_err_deg: f64,
+}
+
+/// The chain over `scenes`, in parallel (each image is searched afresh,
+/// so the order does not matter); the row's family is left to the caller.
+fn measure(
+    db: &ViewDatabase,
+    scenes: &[Rendered],
+    radius_m: f64,
+    distance_m: f64,
+    light_search: usize,
+) -> Result<RobustRow, EvalError> {
+    let outcomes: Vec<Option<Estimated>> = scenes
+        .par_iter()
+        .enumerate()
+        .map_init(
+            || protocol::chain_at(db, distance_m, light_search),
+            |chain, (i, scene)| -> Result<_, EvalError> {
+                let chain = chain
+                    .as_mut()
+                    .map_err(|e| EvalError::Worker(e.to_string()))?;
+                let out = chain.process(
+                    &protocol::frame_of(scene, i as u64, false, radius_m),
+                    scene.image.as_raw(),
+                );
+                let t = &scene.truth;
+                let truth = (t.theta_deg as f32, t.phi_deg as f32);
+                Ok(out.pose().done().map(|e| Estimated {
+                    failed: fails((e.theta_deg, e.phi_deg), truth),
+                    accepted: out.rating().verdict().is_some_and(|v| v.accepted),
+                    phi_err_deg: phi_error(e.phi_deg, truth.1) as f64,
+                    theta_err_deg: (e.theta_deg - truth.0).abs() as f64,
+                }))
+            },
+        )
+        .collect::<Result<_, _>>()?;
+    let n = scenes.len();
+    let estimates: Vec<&Estimated> = outcomes.iter().flatten().collect();
+    let found = estimates.len();
+    let failed = n - found + estimates.iter().filter(|e| e.failed).count();
+    let accepted: Vec<_> = estimates.iter().filter(|e| e.accepted).collect();
+    let share = |k: usize, of: usize| k as f64 / of.max(1) as f64;
+    let mean = |f: fn(&Estimated) -> f64| {
+        estimates.iter().map(|e| f(e)).sum::<f64>() / found.max(1) as f64
+    };
+    Ok(RobustRow {
+        family: String::new(),
+        level: 0.0,
+        light_search: light_search > 0,
+        n,
+        not_found_rate: share(n - found, n),
+        failure_rate: share(failed, n),
+        accepted_rate: share(accepted.len(), n),
+        acc_failure_rate: share(accepted.iter().filter(|e| e.failed).count(), accepted.len()),
+        mean_phi_err_deg: mean(|e| e.phi_err_deg),
+        mean_theta_err_deg: mean(|e| e.theta_err_deg),
+    })
+}
+
+impl RobustReport {
+    /// Writes the report as JSON.
+    pub fn write_json(&self, path: &Path) -> Result<(), EvalError> {
+        write_json(path, self)
+    }
+
+    /// Plots the failure rate against the level, one panel per family,
+    /// with and without the light search.
+    pub fn write_plot(&self, path: &Path) -> Result<(), EvalError> {
+        let clean = |search: bool| {
+            self.rows
+                .iter()
+                .find(|r| r.family == "clean" && r.light_search == search)
+                .map(|r| r.failure_rate)
+        };
+        let panels: Vec<acch_viz::plot::Panel> = FAMILIES
+            .iter()
+            .filter(|f| self.rows.iter().any(|r| r.family == f.name))
+            .map(|f| acch_viz::plot::Panel {
+                title: format!("{} ({})", f.name.replace('_', " "), f.unit),
+                series: [true, false]
+                    .into_iter()
+                    .filter(|s| clean(*s).is_some())
+                    .map(|search| acch_viz::plot::Series {
+                        name: if search {
+                            "light search"
+                        } else {
+                            "training light only"
+                        }
+                        .into(),
+                        points: self
+                            .rows
+                            .iter()
+                            .filter(|r| r.family == f.name && r.light_search == search)
+                            .map(|r| (r.level, r.failure_rate))
+                            .collect(),
+                        reference: clean(search),
+                    })
+                    .collect(),
+            })
+            .collect();
+        acch_viz::plot::panels(
+            path,
+            &format!(
+                "{}: failures (wrong or not found) by perturbation, {} views on A, B, C",
+                self.object,
+                self.rows.first().map_or(0, |r| r.n)
+            ),
+            "failure rate",
+            &panels,
+        )?;
+        Ok(())
+    }
+
+    /// Prints the table.
+    pub fn print(&self) {
+        println!(
+            "robust protocol: {}, {} poses on each of {} (seed {}), default database",
+            self.object,
+            self.n,
+            self.backgrounds.join(", "),
+            self.seed
+        );
+        println!(
+            "{:<20} {:>7} {:>6} {:>6} {:>7} {:>7} {:>8} {:>7} {:>7}",
+            "family", "level", "search", "lost", "fail", "accept", "accfail", "E(phi)", "E(th)"
+        );
+        for r in &self.rows {
+            println!(
+                "{:<20} {:>7} {:>6} {:>5.1}% {:>6.1}% {:>6.1}% {:>7.1}% {:>6.2}° {:>6.2}°",
+                r.family,
+                r.level,
+                if r.light_search { "yes" } else { "no" },
+                100.0 * r.not_found_rate,
+                100.0 * r.failure_rate,
+                100.0 * r.accepted_rate,
+                100.0 * r.acc_failure_rate,
+                r.mean_phi_err_deg,
+                r.mean_theta_err_deg
+            );
+        }
+        println!(
+            "fail: the paper's rule or not found, before the confidence network; accfail: among the accepted. {:.0} s",
+            self.total_seconds
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use acch_capture::Effects;
+
+    #[test]
+    fn every_family_changes_the_scene_or_the_view() {
+        let object = Arc::new(Object::builtin("fruitbox").unwrap());
+        let base = SceneConfig::new(object, "A".parse().unwrap());
+        for f in &FAMILIES {
+            let changed = perturbed(base.clone(), Some((f.name, f.levels[0])));
+            let scene_changed =
+                changed.effects != Effects::default() || changed.occlusion != base.occlusion;
+            assert_eq!(scene_changed, f.name != "distance", "{}", f.name);
+        }
+    }
+}

@@ -1,0 +1,133 @@
+//! A camera under other light: with recognition's light search the object
+//! is found and estimated at half the exposure and under a warm light; with
+//! the training light only the same scenes lose it, so the check can fail.
+//! The renderer's new effects reach `acch render` and name bad values.
+
+mod common;
+
+use common::{acch, ok};
+use serde_json::Value;
+
+#[test]
+fn the_light_search_holds_where_the_training_light_alone_loses_the_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("robust.json");
+    ok(&acch(
+        &[
+            "eval",
+            "--protocol",
+            "robust",
+            "--object",
+            "fruitbox",
+            "--n",
+            "4",
+            "--seed",
+            "11",
+            "--families",
+            "exposure,colour_temperature",
+            "--compare",
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        dir.path(),
+    ));
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    let row = |family: &str, level: f64, search: bool| {
+        rows.iter()
+            .find(|r| r["family"] == family && r["level"] == level && r["light_search"] == search)
+            .unwrap_or_else(|| panic!("no row {family} {level} {search}"))
+    };
+    let f = |r: &Value, k: &str| r[k].as_f64().unwrap();
+    // Only the families asked for.
+    assert!(rows.iter().all(|r| r["family"] != "noise"));
+    for (family, level) in [("exposure", 0.5), ("colour_temperature", 3500.0)] {
+        let (on, off) = (row(family, level, true), row(family, level, false));
+        eprintln!(
+            "{family} {level}: with the search fail {:.2} accepted {:.2}; without fail {:.2}",
+            f(on, "failure_rate"),
+            f(on, "accepted_rate"),
+            f(off, "failure_rate")
+        );
+        assert!(f(on, "failure_rate") <= 0.1, "{on}");
+        assert!(f(on, "accepted_rate") >= 0.8, "{on}");
+        assert!(f(on, "acc_failure_rate") <= 0.1, "{on}");
+        assert!(
+            f(off, "failure_rate") >= f(on, "failure_rate") + 0.2,
+            "{off}"
+        );
+    }
+    // Clean scenes are the same with and without the search.
+    let (on, off) = (row("clean", 0.0, true), row("clean", 0.0, false));
+    for k in ["failure_rate", "accepted_rate", "mean_phi_err_deg"] {
+        assert_eq!(f(on, k), f(off, k), "{k}");
+    }
+}
+
+#[test]
+fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v");
+    let render = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--object",
+            "fruitbox",
+            "--views",
+            "random:1",
+            "--background",
+            "A",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        acch(&args, dir.path())
+    };
+    let mask_pixels = || {
+        let mask = image::open(out.join("view_0000_mask.png"))
+            .unwrap()
+            .to_luma8();
+        mask.pixels().filter(|p| p.0[0] != 0).count()
+    };
+    let mean = || {
+        let img = image::open(out.join("view_0000.png")).unwrap().to_rgb8();
+        let n = img.pixels().len() as f64;
+        [0, 1, 2].map(|c| img.pixels().map(|p| p.0[c] as f64).sum::<f64>() / n)
+    };
+    ok(&render(&[]));
+    let (clean_mask, clean) = (mask_pixels(), mean());
+    ok(&render(&["--exposure", "0.5"]));
+    let dim = mean();
+    assert!(
+        (0..3).all(|c| dim[c] < 0.85 * clean[c]),
+        "{dim:?} vs {clean:?}"
+    );
+    ok(&render(&["--colour-temp-k", "3000"]));
+    let warm = mean();
+    assert!(
+        warm[0] > clean[0] && warm[2] < clean[2],
+        "{warm:?} vs {clean:?}"
+    );
+    ok(&render(&["--occlusion", "0.3"]));
+    let hidden = mask_pixels();
+    assert!(
+        hidden < clean_mask * 85 / 100 && hidden > clean_mask / 3,
+        "{hidden} of {clean_mask}"
+    );
+    ok(&render(&["--jpeg-quality", "40"]));
+    assert_eq!(mask_pixels(), clean_mask);
+    for (flag, value) in [
+        ("--colour-temp-k", "200"),
+        ("--occlusion", "1.5"),
+        ("--vignetting", "-0.1"),
+        ("--exposure", "-1"),
+        ("--jpeg-quality", "101"),
+    ] {
+        let out = render(&[flag, value]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(flag),
+            "{flag} {value}: {err}"
+        );
+    }
+}
