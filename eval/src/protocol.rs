@@ -61,18 +61,21 @@ pub fn view_errors(estimate: (f64, f64), truth: &ViewPose) -> (f64, f64) {
 /// turn in φ is traded for a roll (the same rotation there). θ is clamped
 /// into [0, 90] to build the rotation.
 pub fn rotation_error_deg(estimate: [f64; 3], truth: [f64; 3]) -> f64 {
-    let rotation = |[t, p, roll]: [f64; 3]| {
-        let v = ViewPose {
-            theta_deg: t.clamp(0.0, 90.0),
-            phi_deg: p,
-            distance: 1.0,
-            roll_deg: roll,
-        };
-        glam::DQuat::from_mat3(&v.world_from_camera_rotation())
-    };
-    rotation(estimate)
-        .angle_between(rotation(truth))
+    camera_rotation(estimate)
+        .angle_between(camera_rotation(truth))
         .to_degrees()
+}
+
+/// The camera rotation (world from camera) of (θ, φ, roll), degrees, θ
+/// clamped into [0, 90].
+fn camera_rotation([theta, phi, roll]: [f64; 3]) -> glam::DQuat {
+    let v = ViewPose {
+        theta_deg: theta.clamp(0.0, 90.0),
+        phi_deg: phi,
+        distance: 1.0,
+        roll_deg: roll,
+    };
+    glam::DQuat::from_mat3(&v.world_from_camera_rotation())
 }
 
 /// How far the estimated camera is turned about its optical axis against
@@ -83,17 +86,8 @@ pub fn rotation_error_deg(estimate: [f64; 3], truth: [f64; 3]) -> f64 {
 /// near the top; this is the in-image turn a tracker seeded with the
 /// estimate starts with, whatever mix of φ and roll makes it.
 pub fn turn_error_deg(estimate: [f64; 3], truth: [f64; 3]) -> f64 {
-    let rotation = |[t, p, roll]: [f64; 3]| {
-        let v = ViewPose {
-            theta_deg: t.clamp(0.0, 90.0),
-            phi_deg: p,
-            distance: 1.0,
-            roll_deg: roll,
-        };
-        glam::DQuat::from_mat3(&v.world_from_camera_rotation())
-    };
     // In the estimated camera's frame, where the optical axis is z.
-    let q = rotation(estimate).inverse() * rotation(truth);
+    let q = camera_rotation(estimate).inverse() * camera_rotation(truth);
     let twist = 2.0 * q.z.atan2(q.w).to_degrees();
     let d = twist.rem_euclid(360.0);
     d.min(360.0 - d)
