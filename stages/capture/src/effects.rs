@@ -123,7 +123,7 @@ fn light(rgb: &mut [u8], w: usize, h: usize, fx: &Effects) {
     let exposure = finite(fx.exposure, 1.0);
     let cast = colour_temperature_gains(finite(fx.colour_temp_k, TRAINING_LIGHT_K));
     let vignetting = finite(fx.vignetting, 0.0).min(1.0);
-    let decode: Vec<f32> = (0..=255u8).map(srgb_to_linear).collect();
+    let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
     let (cx, cy) = ((w as f32 - 1.0) / 2.0, (h as f32 - 1.0) / 2.0);
     let corner2 = (cx * cx + cy * cy).max(1.0);
     for (i, px) in rgb.chunks_exact_mut(3).enumerate() {

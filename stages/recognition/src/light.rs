@@ -101,20 +101,18 @@ impl LightSearch {
         })
     }
 
-    /// The other exposures at the current colour temperature, nearest
-    /// first, then the other colour temperatures at the current exposure.
-    fn candidates(&self) -> Vec<(usize, usize)> {
+    /// Neighbour `k` (0..[`CANDIDATES`]) of the light in use: the other
+    /// exposures at its colour temperature, nearest first, then the other
+    /// colour temperatures at its exposure (computed, not listed: the
+    /// search allocates nothing per frame).
+    fn candidate(&self, k: usize) -> (usize, usize) {
         let (e, t) = self.current;
-        let by_distance = |n: usize, at: usize| {
-            let mut v: Vec<usize> = (0..n).filter(|&i| i != at).collect();
-            v.sort_by_key(|&i| i.abs_diff(at));
-            v
-        };
-        let exposures = by_distance(EXPOSURES.len(), e).into_iter().map(|i| (i, t));
-        let temperatures = by_distance(COLOUR_TEMPERATURES_K.len(), t)
-            .into_iter()
-            .map(|j| (e, j));
-        exposures.chain(temperatures).collect()
+        let others = EXPOSURES.len() - 1;
+        if k < others {
+            (nth_nearest(EXPOSURES.len(), e, k), t)
+        } else {
+            (e, nth_nearest(COLOUR_TEMPERATURES_K.len(), t, k - others))
+        }
     }
 
     /// Quantises `rgb` into `indices` under the current light and detects;
@@ -161,10 +159,9 @@ impl LightSearch {
         // then around the best of those.
         let rounds = if self.per_frame >= CANDIDATES { 2 } else { 1 };
         for _ in 0..rounds {
-            let list = self.candidates();
-            let budget = self.per_frame.min(list.len());
+            let budget = self.per_frame.min(CANDIDATES);
             for i in 0..budget {
-                let at = list[(self.offset + i) % list.len()];
+                let at = self.candidate((self.offset + i) % CANDIDATES);
                 let (found, s) = run(at, self.palette(at), detector, indices);
                 last = at;
                 let r = rank(&found, s);
@@ -172,7 +169,7 @@ impl LightSearch {
                     (best, best_rank, best_found) = (at, r, found);
                 }
             }
-            self.offset = if budget < list.len() {
+            self.offset = if budget < CANDIDATES {
                 self.offset + budget
             } else {
                 0
@@ -189,6 +186,24 @@ impl LightSearch {
         }
         run(best, self.palette(best), detector, indices).0
     }
+}
+
+/// The `k`-th nearest of `0..n` to `at`, `at` left out, the lower of two
+/// at one distance first.
+fn nth_nearest(n: usize, at: usize, k: usize) -> usize {
+    let mut seen = 0;
+    for d in 1..n {
+        for i in [at.checked_sub(d), Some(at + d).filter(|&i| i < n)]
+            .into_iter()
+            .flatten()
+        {
+            if seen == k {
+                return i;
+            }
+            seen += 1;
+        }
+    }
+    unreachable!("k < n - 1 neighbours")
 }
 
 /// The linear gains of grid light `(exposure, colour temperature)`.
@@ -217,9 +232,14 @@ mod tests {
         )
         .unwrap();
         let search = LightSearch::new(&palette, CANDIDATES);
-        let list = search.candidates();
-        assert_eq!(list.len(), CANDIDATES);
-        assert_eq!(&list[..2], &[(7, 3), (9, 3)]);
+        let list: Vec<_> = (0..CANDIDATES).map(|k| search.candidate(k)).collect();
+        assert_eq!(&list[..4], &[(7, 3), (9, 3), (6, 3), (10, 3)]);
+        assert_eq!(list[13], (0, 3));
+        assert_eq!(&list[14..17], &[(8, 2), (8, 4), (8, 1)]);
         assert!(list.iter().all(|&at| at != TRAINING));
+        let mut unique = list.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), CANDIDATES);
     }
 }
