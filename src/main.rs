@@ -30,7 +30,7 @@ enum Command {
     /// Write an image's histogram as a NumPy .npy array.
     Features(cmd::features::FeaturesArgs),
     /// Evaluate accuracy with a reproducible protocol (paper table 1).
-    Eval(cmd::eval::EvalArgs),
+    Eval(Box<cmd::eval::EvalArgs>),
     /// Latency benchmark: processes vs one process vs frames copied (JSON + PNG).
     Bench(cmd::bench::BenchArgs),
 }
@@ -53,7 +53,7 @@ fn main() -> std::process::ExitCode {
         Command::Stage(args) => cmd::stage::run(args),
         Command::Listen(args) => cmd::listen::run(args),
         Command::Train(args) => cmd::train::run(args),
-        Command::Eval(args) => cmd::eval::run(args),
+        Command::Eval(args) => cmd::eval::run(*args),
         Command::Estimate(args) => cmd::estimate::run(args),
         Command::Features(args) => cmd::features::run(args),
     };

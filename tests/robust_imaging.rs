@@ -131,3 +131,105 @@ fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
         );
     }
 }
+
+/// Two generated objects, their imaging-aware databases trained on first
+/// use: every pooled row holds both objects' images, its rates are the
+/// objects' counts summed, its worst is the worse object's; bad lists
+/// are named.
+#[test]
+fn a_population_pools_every_objects_rows_and_names_bad_lists() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("population.json");
+    ok(&acch(
+        &[
+            "eval",
+            "--protocol",
+            "robust",
+            "--objects",
+            "generated-11,generated-12",
+            "--confidence-imaging",
+            "--n",
+            "2",
+            "--seed",
+            "11",
+            "--families",
+            "exposure",
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        dir.path(),
+    ));
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        report["objects"],
+        serde_json::json!(["generated-11", "generated-12"])
+    );
+    assert_eq!(report["database"], "imaging-aware");
+    let per_object = report["per_object"].as_array().unwrap();
+    assert_eq!(per_object.len(), 2);
+    for o in per_object {
+        let input = o["confidence_input"].as_str().unwrap();
+        assert!(
+            ["features", "response", "grounded"].contains(&input),
+            "{input}"
+        );
+    }
+    let rows = report["rows"].as_array().unwrap();
+    // Clean and the six exposures.
+    assert_eq!(rows.len(), 7);
+    let f = |r: &Value, k: &str| r[k].as_f64().unwrap();
+    for (k, row) in rows.iter().enumerate() {
+        let parts: Vec<&Value> = per_object.iter().map(|o| &o["rows"][k]).collect();
+        assert!(
+            parts
+                .iter()
+                .all(|p| p["family"] == row["family"] && p["level"] == row["level"])
+        );
+        assert_eq!(row["n"], 12, "{row}");
+        assert_eq!(row["objects"], 2);
+        let count = |r: &Value, k: &str| (f(r, k) * f(r, "n")).round();
+        let failed: f64 = parts.iter().map(|p| count(p, "failure_rate")).sum();
+        assert!(
+            (f(row, "failure_rate") - failed / 12.0).abs() < 1e-9,
+            "{row}"
+        );
+        let accepted: f64 = parts.iter().map(|p| count(p, "accepted_rate")).sum();
+        assert!(
+            (f(row, "accepted_rate") - accepted / 12.0).abs() < 1e-9,
+            "{row}"
+        );
+        let worst = parts
+            .iter()
+            .map(|p| f(p, "failure_rate"))
+            .fold(0.0, f64::max);
+        assert_eq!(f(row, "worst_failure_rate"), worst);
+    }
+
+    for (list, named) in [
+        ("random:0", "random:0"),
+        ("banana", "generated-N"),
+        ("generated-07", "generated-07"),
+    ] {
+        let out = acch(
+            &[
+                "eval",
+                "--protocol",
+                "robust",
+                "--objects",
+                list,
+                "--n",
+                "1",
+            ],
+            dir.path(),
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{list} was taken");
+        assert!(err.contains(named), "{list}: {err}");
+    }
+    let out = acch(
+        &["eval", "--protocol", "table1", "--objects", "generated-11"],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--protocol robust"));
+}

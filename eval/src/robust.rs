@@ -91,6 +91,9 @@ pub struct RobustOptions {
     pub compare: bool,
     /// The families to measure (by [`Family::name`]); empty: all.
     pub families: Vec<String>,
+    /// Which database is measured, for the report: "default" or
+    /// "imaging-aware".
+    pub database: &'static str,
 }
 
 /// One row: a family at a level, over every background.
@@ -132,6 +135,11 @@ pub struct RobustReport {
     pub seed: u64,
     /// The backgrounds.
     pub backgrounds: Vec<String>,
+    /// Which database ("default" or "imaging-aware").
+    pub database: &'static str,
+    /// What its confidence network reads ("features", "response" or
+    /// "grounded").
+    pub confidence_input: &'static str,
     /// The rows, clean first.
     pub rows: Vec<RobustRow>,
     /// Time of the whole protocol, s.
@@ -235,6 +243,9 @@ pub fn robust(
         n: o.n,
         seed: o.seed,
         backgrounds: BACKGROUNDS.iter().map(|b| b.to_string()).collect(),
+        database: o.database,
+        confidence_input: acch_confidence::Model::load(db)
+            .map_or("none", |m| crate::train::kind_name(m.kind())),
         rows,
         total_seconds: start.elapsed().as_secs_f64(),
     })
@@ -304,6 +315,232 @@ fn measure(
     })
 }
 
+/// The robust protocol over a population of objects: the rows of every
+/// object's report pooled per family and level, with the spread over the
+/// objects.
+#[derive(Serialize, Debug)]
+pub struct PopulationReport {
+    /// "robust-population".
+    pub protocol: &'static str,
+    /// The objects, in order.
+    pub objects: Vec<String>,
+    /// Test poses per background and object.
+    pub n: usize,
+    /// Seed of the poses and scenes.
+    pub seed: u64,
+    /// Which databases ("default" or "imaging-aware").
+    pub database: &'static str,
+    /// The pooled rows, clean first.
+    pub rows: Vec<PopulationRow>,
+    /// Every object's own report.
+    pub per_object: Vec<RobustReport>,
+    /// Time of the whole protocol (training included), s.
+    pub total_seconds: f64,
+}
+
+/// A family at a level pooled over the population: the rates are over
+/// all its images (`n` of them), the spread over its objects.
+#[derive(Clone, Debug, Serialize)]
+pub struct PopulationRow {
+    /// The pooled rates, as one object's row holds them.
+    #[serde(flatten)]
+    pub pooled: RobustRow,
+    /// Objects pooled.
+    pub objects: usize,
+    /// The worst object's failure rate.
+    pub worst_failure_rate: f64,
+    /// The worst object's failures among its accepted.
+    pub worst_acc_failure_rate: f64,
+    /// Objects with any accepted estimate wrong.
+    pub objects_accepting_wrong: usize,
+}
+
+impl PopulationRow {
+    /// Pools the rows of one family, level and search over the objects.
+    fn pool(rows: &[&RobustRow]) -> PopulationRow {
+        let first = rows[0];
+        let n: usize = rows.iter().map(|r| r.n).sum();
+        // The rates are shares of whole images: back to counts exactly.
+        let count = |rate: f64, of: usize| (rate * of as f64).round() as usize;
+        let sum = |f: &dyn Fn(&RobustRow) -> usize| rows.iter().map(|r| f(r)).sum::<usize>();
+        let not_found = sum(&|r| count(r.not_found_rate, r.n));
+        let failed = sum(&|r| count(r.failure_rate, r.n));
+        let accepted = sum(&|r| count(r.accepted_rate, r.n));
+        let acc_failed = sum(&|r| count(r.acc_failure_rate, count(r.accepted_rate, r.n)));
+        let found = n - not_found;
+        let mean = |f: &dyn Fn(&RobustRow) -> f64| {
+            rows.iter()
+                .map(|r| f(r) * (r.n - count(r.not_found_rate, r.n)) as f64)
+                .sum::<f64>()
+                / found.max(1) as f64
+        };
+        let share = |k: usize, of: usize| k as f64 / of.max(1) as f64;
+        let worst = |f: &dyn Fn(&RobustRow) -> f64| rows.iter().map(|r| f(r)).fold(0.0, f64::max);
+        PopulationRow {
+            pooled: RobustRow {
+                family: first.family.clone(),
+                level: first.level,
+                light_search: first.light_search,
+                n,
+                not_found_rate: share(not_found, n),
+                failure_rate: share(failed, n),
+                accepted_rate: share(accepted, n),
+                acc_failure_rate: share(acc_failed, accepted),
+                mean_phi_err_deg: mean(&|r| r.mean_phi_err_deg),
+                mean_theta_err_deg: mean(&|r| r.mean_theta_err_deg),
+            },
+            objects: rows.len(),
+            worst_failure_rate: worst(&|r| r.failure_rate),
+            worst_acc_failure_rate: worst(&|r| r.acc_failure_rate),
+            objects_accepting_wrong: rows.iter().filter(|r| r.acc_failure_rate > 0.0).count(),
+        }
+    }
+}
+
+/// Runs the robust protocol on every object of `population` with its
+/// database (`database(object)`, trained on first use), and pools the rows.
+pub fn robust_population(
+    population: &[Arc<Object>],
+    database: &dyn Fn(&Arc<Object>) -> Result<ViewDatabase, EvalError>,
+    options: &RobustOptions,
+) -> Result<PopulationReport, EvalError> {
+    if population.is_empty() {
+        return Err(EvalError::Input("the population holds no object".into()));
+    }
+    let start = Instant::now();
+    let bar = protocol::progress(population.len() as u64, "objects");
+    let mut per_object = Vec::with_capacity(population.len());
+    for object in population {
+        bar.set_message(format!("objects ({})", object.name()));
+        let db = database(object)?;
+        per_object.push(robust(object.clone(), &db, options)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let rows = per_object[0]
+        .rows
+        .iter()
+        .enumerate()
+        .map(|(k, _)| {
+            let rows: Vec<&RobustRow> = per_object.iter().map(|r| &r.rows[k]).collect();
+            PopulationRow::pool(&rows)
+        })
+        .collect();
+    Ok(PopulationReport {
+        protocol: "robust-population",
+        objects: population.iter().map(|o| o.name().to_owned()).collect(),
+        n: options.n,
+        seed: options.seed,
+        database: options.database,
+        rows,
+        per_object,
+        total_seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+impl PopulationReport {
+    /// Writes the report as JSON.
+    pub fn write_json(&self, path: &Path) -> Result<(), EvalError> {
+        write_json(path, self)
+    }
+
+    /// Plots the pooled failure rate and the failures among the accepted
+    /// against the level, one panel per family (the light search's rows).
+    pub fn write_plot(&self, path: &Path) -> Result<(), EvalError> {
+        let search = self.rows.iter().any(|r| r.pooled.light_search);
+        let rows: Vec<&PopulationRow> = self
+            .rows
+            .iter()
+            .filter(|r| r.pooled.light_search == search)
+            .collect();
+        let clean = rows.iter().find(|r| r.pooled.family == "clean");
+        type Rate = fn(&PopulationRow) -> f64;
+        let measures: [(&str, Rate); 3] = [
+            ("failures", |r| r.pooled.failure_rate),
+            ("wrong among accepted", |r| r.pooled.acc_failure_rate),
+            ("worst object's failures", |r| r.worst_failure_rate),
+        ];
+        let panels: Vec<acch_viz::plot::Panel> = FAMILIES
+            .iter()
+            .filter(|f| rows.iter().any(|r| r.pooled.family == f.name))
+            .map(|f| acch_viz::plot::Panel {
+                title: format!("{} ({})", f.name.replace('_', " "), f.unit),
+                series: measures
+                    .iter()
+                    .map(|(name, rate)| acch_viz::plot::Series {
+                        name: (*name).into(),
+                        points: rows
+                            .iter()
+                            .filter(|r| r.pooled.family == f.name)
+                            .map(|r| (r.pooled.level, rate(r)))
+                            .collect(),
+                        reference: clean.map(|r| rate(r)),
+                    })
+                    .collect(),
+            })
+            .collect();
+        acch_viz::plot::panels(
+            path,
+            &format!(
+                "{} generated and other objects, {} views each on A, B, C: rates by perturbation",
+                self.objects.len(),
+                self.n
+            ),
+            "rate",
+            &panels,
+        )?;
+        Ok(())
+    }
+
+    /// Prints the pooled table.
+    pub fn print(&self) {
+        println!(
+            "robust protocol over {} objects ({} .. {}), {} poses on each of A, B, C (seed {}), {} databases",
+            self.objects.len(),
+            self.objects.first().map_or("", String::as_str),
+            self.objects.last().map_or("", String::as_str),
+            self.n,
+            self.seed,
+            self.database
+        );
+        println!(
+            "{:<20} {:>7} {:>6} {:>6} {:>7} {:>7} {:>8} {:>7} {:>7} {:>9} {:>7}",
+            "family",
+            "level",
+            "search",
+            "lost",
+            "fail",
+            "accept",
+            "accfail",
+            "E(phi)",
+            "E(th)",
+            "worstfail",
+            "objwrong"
+        );
+        for row in &self.rows {
+            let r = &row.pooled;
+            println!(
+                "{:<20} {:>7} {:>6} {:>5.1}% {:>6.1}% {:>6.1}% {:>7.1}% {:>6.2}° {:>6.2}° {:>8.1}% {:>7}",
+                r.family,
+                r.level,
+                if r.light_search { "yes" } else { "no" },
+                100.0 * r.not_found_rate,
+                100.0 * r.failure_rate,
+                100.0 * r.accepted_rate,
+                100.0 * r.acc_failure_rate,
+                r.mean_phi_err_deg,
+                r.mean_theta_err_deg,
+                100.0 * row.worst_failure_rate,
+                row.objects_accepting_wrong
+            );
+        }
+        println!(
+            "pooled over the objects' images; worstfail: the worst object's failure rate; objwrong: objects with an accepted estimate wrong. {:.0} s",
+            self.total_seconds
+        );
+    }
+}
+
 impl RobustReport {
     /// Writes the report as JSON.
     pub fn write_json(&self, path: &Path) -> Result<(), EvalError> {
@@ -361,11 +598,12 @@ impl RobustReport {
     /// Prints the table.
     pub fn print(&self) {
         println!(
-            "robust protocol: {}, {} poses on each of {} (seed {}), default database",
+            "robust protocol: {}, {} poses on each of {} (seed {}), {} database",
             self.object,
             self.n,
             self.backgrounds.join(", "),
-            self.seed
+            self.seed,
+            self.database
         );
         println!(
             "{:<20} {:>7} {:>6} {:>6} {:>7} {:>7} {:>8} {:>7} {:>7}",

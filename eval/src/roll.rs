@@ -10,7 +10,7 @@
 //! an upright network) runs on the same scenes beside it.
 
 use crate::protocol::{self, fails_with_roll};
-use crate::train::{self, ConfidenceInput, ConfidenceRoll, RenderedTraining};
+use crate::train::{self, ConfidenceInput, ConfidenceScenes, RenderedTraining};
 use crate::{EvalError, write_json};
 use acch_capture::{DEFAULT_DISTANCE, Object, Rendered, TextureSet, ViewSpec};
 use acch_core::ViewDatabase;
@@ -127,21 +127,22 @@ pub fn roll(
         }
     }
     let start = Instant::now();
-    let trained = |roll: ConfidenceRoll| {
+    let trained = |scenes: ConfidenceScenes| {
         let training = RenderedTraining {
-            roll,
+            scenes,
             ..RenderedTraining::default()
         };
         let confidence = Some((o.confidence_scenes.max(1), ConfidenceInput::Auto));
         train::train_object(&object, config, &training, confidence)
     };
-    let (rolled_db, choice) = trained(ConfidenceRoll {
-        scenes_deg: o.search_deg,
+    let (rolled_db, choice) = trained(ConfidenceScenes {
+        roll_deg: o.search_deg,
         search_deg: o.search_deg,
+        imaging: false,
     })?;
     let mut databases = vec![("roll-trained", rolled_db)];
     if o.compare {
-        databases.push(("default", trained(ConfidenceRoll::default())?.0));
+        databases.push(("default", trained(ConfidenceScenes::default())?.0));
     }
     let train_seconds = start.elapsed().as_secs_f64();
 

@@ -393,7 +393,7 @@ fn train(
         object,
         scenes,
         DEFAULT_DISTANCE,
-        train::ConfidenceRoll::default(),
+        train::ConfidenceScenes::default(),
         0,
     )?;
     tracing::info!("{choice}");

@@ -167,7 +167,7 @@ pub fn table2(
         &object,
         DEFAULT_CONFIDENCE_SCENES,
         DEFAULT_DISTANCE,
-        train::ConfidenceRoll::default(),
+        train::ConfidenceScenes::default(),
         0,
     )?;
     model.store(&mut db);

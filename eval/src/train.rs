@@ -6,7 +6,10 @@
 
 use crate::EvalError;
 use crate::protocol::{self, PAPER_GRID};
-use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, ViewPose, ViewSpec};
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose,
+    ViewSpec,
+};
 use acch_confidence::Kind;
 use acch_core::ViewDatabase;
 use acch_pipeline::stages::{Confidence, Stages};
@@ -77,32 +80,50 @@ pub struct RenderedTraining {
     pub distance: f64,
     /// Seed of the views and the scene.
     pub seed: u64,
-    /// How the confidence network's scenes roll and whether the pose
-    /// stage searches the roll on them (upright, no search by default).
-    pub roll: ConfidenceRoll,
+    /// How the confidence network's scenes roll, whether the pose stage
+    /// searches the roll on them and whether some are imaged under other
+    /// light (upright, no search, the training light by default).
+    pub scenes: ConfidenceScenes,
 }
 
-/// The camera roll of the confidence-training (and validation) scenes, and
-/// the roll search their estimates are made with.
+/// How the confidence-training (and validation) scenes are taken: their
+/// camera roll and the roll search their estimates are made with, and
+/// whether some are imaged under other light and a worse camera.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ConfidenceRoll {
+pub struct ConfidenceScenes {
     /// Largest camera roll of the scenes, degrees: 0 keeps them upright;
     /// above 0 every other scene rolls uniformly within it.
-    pub scenes_deg: f64,
+    pub roll_deg: f64,
     /// The largest roll the pose stage searches on them, degrees (0: none).
     /// A database trained with a search records it
     /// ([`acch_pose::store_roll_search_deg`]), and runs use it.
     pub search_deg: f64,
+    /// Every other scene under one perturbation of [`imaging_condition`]
+    /// (exposure, colour temperature, byte brightness, noise, blur, JPEG,
+    /// an occluding bar), recognised with the light search, and the
+    /// grounded input (which also reads the absolute match value) among
+    /// the candidates: a network that has seen weak and relit matches go
+    /// wrong. Off by default: the default database is what it always was.
+    pub imaging: bool,
 }
 
-impl ConfidenceRoll {
+impl ConfidenceScenes {
     /// Whether the scenes' estimates are labelled by the whole rotation
     /// ([`protocol::fails_with_roll`]) rather than the paper's rule on
     /// (θ, φ): whenever anything rolls. Upright training without the
     /// search keeps the paper's rule, so its database is what it always
     /// was, byte for byte.
     fn labels_by_rotation(&self) -> bool {
-        self.scenes_deg > 0.0 || self.search_deg > 0.0
+        self.roll_deg > 0.0 || self.search_deg > 0.0
+    }
+
+    /// The inputs the network is chosen among.
+    fn candidates(&self) -> &'static [Kind] {
+        if self.imaging {
+            &[Kind::Features, Kind::Response, Kind::Grounded]
+        } else {
+            &[Kind::Features, Kind::Response]
+        }
     }
 
     /// Whether an estimate of scene truth `truth` is reliable.
@@ -123,7 +144,7 @@ impl Default for RenderedTraining {
             background: Background::default(),
             distance: DEFAULT_DISTANCE,
             seed: 0,
-            roll: ConfidenceRoll::default(),
+            scenes: ConfidenceScenes::default(),
         }
     }
 }
@@ -172,6 +193,8 @@ pub struct ConfidenceSample {
     pub features: Vec<f32>,
     /// The whole normalised response.
     pub response: Vec<f32>,
+    /// The normalised response and its maximum, the absolute match value.
+    pub grounded: Vec<f32>,
     /// Whether the estimate was within the failure thresholds.
     pub reliable: bool,
 }
@@ -184,6 +207,7 @@ pub fn unrated_chain(
     height: u32,
     distance_m: f64,
     roll_search_deg: f64,
+    light_search: usize,
 ) -> Result<Chain, EvalError> {
     let settings = StageSettings {
         width,
@@ -191,9 +215,7 @@ pub fn unrated_chain(
         distance_m: Some(distance_m),
         unrated: true,
         roll_search_deg: roll_search_deg as f32,
-        // The scenes are lit as the training views: the database does not
-        // depend on the light search.
-        light_search: 0,
+        light_search,
     };
     let mut stages = Stages::new(db, &settings)?;
     stages.confidence = Confidence::unrated(db);
@@ -202,29 +224,45 @@ pub fn unrated_chain(
 
 /// Renders `per_background` random-pose scenes on each of
 /// [`CONFIDENCE_BACKGROUNDS`] (seeds from `seed_base`), runs the chain
-/// unrated, and labels each estimate by ground truth.
+/// unrated, and labels each estimate by ground truth. With
+/// `scenes.imaging`, every other scene is imaged under one of
+/// [`IMAGING_CONDITIONS`] conditions per background drawn by
+/// [`imaging_condition`], and recognition searches the light (as the
+/// robust protocol runs it); otherwise the scenes are lit as the training
+/// views and recognition does not search.
 pub fn confidence_samples(
     db: &ViewDatabase,
     object: &Arc<Object>,
     per_background: usize,
     seed_base: u64,
     distance: f64,
-    roll: ConfidenceRoll,
+    scenes: ConfidenceScenes,
 ) -> Result<Vec<ConfidenceSample>, EvalError> {
     let params = acch_confidence::FeatureParams::default();
+    let light_search = if scenes.imaging {
+        acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH
+    } else {
+        0
+    };
     let mut samples = Vec::new();
     for (k, name) in CONFIDENCE_BACKGROUNDS.iter().enumerate() {
         let seed = seed_base + k as u64;
         let background: Background = name.parse()?;
-        let renderer = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
-        let views = confidence_views(per_background, distance, seed, roll.scenes_deg)?;
-        let renders = protocol::render_views(&renderer, &views, seed, name);
+        let views = confidence_views(per_background, distance, seed, scenes.roll_deg)?;
+        let renders = if scenes.imaging {
+            render_imaged(object, background, &views, seed, name)
+        } else {
+            let renderer =
+                protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+            protocol::render_views(&renderer, &views, seed, name)
+        };
         let (w, h) = renders.first().map_or((640, 480), |r| r.image.dimensions());
+        let distance_m = distance * object.radius_m();
         let chunk: Vec<ConfidenceSample> = renders
             .par_iter()
             .enumerate()
             .map_init(
-                || unrated_chain(db, w, h, distance * object.radius_m(), roll.search_deg),
+                || unrated_chain(db, w, h, distance_m, scenes.search_deg, light_search),
                 |chain, (i, r)| -> Result<Option<ConfidenceSample>, EvalError> {
                     let chain = chain
                         .as_mut()
@@ -242,7 +280,8 @@ pub fn confidence_samples(
                     Ok(Some(ConfidenceSample {
                         features: Kind::Features.input(&params, resp, slices, views)?,
                         response: Kind::Response.input(&params, resp, slices, views)?,
-                        reliable: roll.reliable(
+                        grounded: Kind::Grounded.input(&params, resp, slices, views)?,
+                        reliable: scenes.reliable(
                             [e.theta_deg, e.phi_deg, e.roll_deg],
                             [
                                 r.truth.theta_deg as f32,
@@ -260,6 +299,69 @@ pub fn confidence_samples(
         samples.extend(chunk);
     }
     Ok(samples)
+}
+
+/// Perturbed conditions drawn per background for imaged confidence scenes.
+pub const IMAGING_CONDITIONS: usize = 8;
+
+/// Condition `k` of the imaged confidence scenes of seed `seed`: one
+/// perturbation at a level drawn over a little more than the range a
+/// robot's camera sees (and the robust protocol measures): exposure
+/// 0.4-2.5x (log-uniform), colour temperature 3000-7500 K, byte brightness
+/// 0.55-1.6x, noise sigma 1-8, blur sigma 0.3-2.5 px, JPEG quality 50-90,
+/// a bar over 5-40 % of the width.
+pub fn imaging_condition(config: SceneConfig, seed: u64, k: usize) -> SceneConfig {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(acch_capture::derive_seed(
+        seed ^ 0x696d_6167,
+        k as u64,
+    ));
+    let mut config = config;
+    let fx = &mut config.effects;
+    match rng.random_range(0..7u32) {
+        0 => fx.exposure = rng.random_range(0.4f32.ln()..2.5f32.ln()).exp(),
+        1 => fx.colour_temp_k = rng.random_range(3000.0..7500.0),
+        2 => fx.brightness = rng.random_range(0.55..1.6),
+        3 => fx.noise_sigma = rng.random_range(1.0..8.0),
+        4 => fx.blur_sigma = rng.random_range(0.3..2.5),
+        5 => fx.jpeg_quality = rng.random_range(50..=90),
+        _ => config.occlusion = rng.random_range(0.05..0.4),
+    }
+    config
+}
+
+/// The views rendered on `background`, the even ones as the training
+/// views are lit, the odd ones under [`imaging_condition`]s.
+fn render_imaged(
+    object: &Arc<Object>,
+    background: Background,
+    views: &[ViewPose],
+    seed: u64,
+    name: &str,
+) -> Vec<Rendered> {
+    let base = SceneConfig::new(object.clone(), background).with_textures(TextureSet::Training);
+    let mut renderers = vec![Renderer::new(base.clone(), seed)];
+    renderers.extend(
+        (0..IMAGING_CONDITIONS)
+            .map(|k| Renderer::new(imaging_condition(base.clone(), seed, k), seed)),
+    );
+    let bar = protocol::progress(views.len() as u64, name);
+    let out = views
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let renderer = if i % 2 == 0 {
+                &renderers[0]
+            } else {
+                &renderers[1 + (i / 2) % IMAGING_CONDITIONS]
+            };
+            let r = renderer.render(v, acch_capture::frame_seed(seed, i));
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
 }
 
 /// `n` poses with θ uniform in [CONFIDENCE_MIN_THETA_DEG, 90], φ in [0,
@@ -288,6 +390,17 @@ fn confidence_views(
         .collect()
 }
 
+impl ConfidenceSample {
+    /// The network input of `kind`.
+    pub fn input(&self, kind: Kind) -> &[f32] {
+        match kind {
+            Kind::Features => &self.features,
+            Kind::Response => &self.response,
+            Kind::Grounded => &self.grounded,
+        }
+    }
+}
+
 /// Trains a confidence network of `kind` on `samples` and stores it in
 /// `db`. Samples of one class only (every estimate right, or every one
 /// wrong) cannot teach it anything: that is an error naming the counts.
@@ -300,10 +413,7 @@ pub fn train_confidence(
     let data: Vec<(Vec<f32>, bool)> = samples
         .iter()
         .map(|s| {
-            let input = match kind {
-                Kind::Features => s.features.clone(),
-                Kind::Response => s.response.clone(),
-            };
+            let input = s.input(kind).to_vec();
             (input, s.reliable)
         })
         .collect();
@@ -379,6 +489,7 @@ pub fn kind_name(kind: Kind) -> &'static str {
     match kind {
         Kind::Features => "features",
         Kind::Response => "response",
+        Kind::Grounded => "grounded",
     }
 }
 
@@ -392,7 +503,7 @@ pub fn choose_confidence_input(
     object: &Arc<Object>,
     per_background: usize,
     distance: f64,
-    roll: ConfidenceRoll,
+    scenes: ConfidenceScenes,
     seed: u64,
 ) -> Result<
     (
@@ -402,24 +513,19 @@ pub fn choose_confidence_input(
     ),
     EvalError,
 > {
-    let samples = |base| confidence_samples(db, object, per_background, base, distance, roll);
+    let samples = |base| confidence_samples(db, object, per_background, base, distance, scenes);
     let train = samples(CONFIDENCE_SEED_BASE)?;
     let validation = samples(VALIDATION_SEED_BASE)?;
     let labels: Vec<bool> = validation.iter().map(|s| s.reliable).collect();
     let mut models = Vec::new();
     let mut scores = Vec::new();
-    for kind in [Kind::Features, Kind::Response] {
+    for &kind in scenes.candidates() {
         let mut trained = db.clone();
         train_confidence(&mut trained, &train, kind, seed)?;
         let model = acch_confidence::Model::load(&trained)?;
         let predicted = validation
             .iter()
-            .map(|s| {
-                model.predict(match kind {
-                    Kind::Features => &s.features,
-                    Kind::Response => &s.response,
-                })
-            })
+            .map(|s| model.predict(s.input(kind)))
             .collect::<Result<Vec<f32>, _>>()?;
         scores.push(InputScore {
             input: kind_name(kind),
@@ -433,17 +539,19 @@ pub fn choose_confidence_input(
     let decided = validation_failures >= MIN_VALIDATION_FAILURES
         && validation_failures < validation.len()
         && scores.iter().all(|s| s.roc_auc.is_finite());
-    let chosen = if decided {
-        // Ties go to the fallback.
-        let (f, r) = (scores[0].roc_auc, scores[1].roc_auc);
-        match FALLBACK_CONFIDENCE_KIND {
-            Kind::Response if f > r => Kind::Features,
-            Kind::Features if r > f => Kind::Response,
-            k => k,
-        }
-    } else {
-        FALLBACK_CONFIDENCE_KIND
-    };
+    let kinds: Vec<Kind> = models.iter().map(|(k, _)| *k).collect();
+    let aucs: Vec<f64> = scores.iter().map(|s| s.roc_auc).collect();
+    let order = rank_inputs(&kinds, &aucs);
+    let fallback = models
+        .iter()
+        .position(|(k, _)| *k == FALLBACK_CONFIDENCE_KIND)
+        .expect("the fallback is a candidate");
+    let chosen_at = if decided { order[0] } else { fallback };
+    let other_at = *order
+        .iter()
+        .find(|&&i| i != chosen_at)
+        .expect("two candidates");
+    let chosen = models[chosen_at].0;
     let choice = ConfidenceChoice {
         chosen: kind_name(chosen),
         decided,
@@ -453,11 +561,25 @@ pub fn choose_confidence_input(
         validation_failures,
         scores,
     };
-    let (chosen_model, other) = match (models.remove(0), models.remove(0)) {
-        ((k, a), (_, b)) if k == chosen => (a, b),
-        ((_, a), (_, b)) => (b, a),
-    };
+    let mut models: Vec<Option<acch_confidence::Model>> =
+        models.into_iter().map(|(_, m)| Some(m)).collect();
+    let chosen_model = models[chosen_at].take().expect("taken once");
+    let other = models[other_at].take().expect("taken once");
     Ok((choice, chosen_model, other))
+}
+
+/// The candidates' indices best first: the higher validation AUC; ties go
+/// to [`FALLBACK_CONFIDENCE_KIND`], then to the earlier candidate.
+fn rank_inputs(kinds: &[Kind], aucs: &[f64]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..kinds.len()).collect();
+    order.sort_by(|&i, &j| {
+        let fallback = |i: usize| kinds[i] == FALLBACK_CONFIDENCE_KIND;
+        aucs[j]
+            .total_cmp(&aucs[i])
+            .then(fallback(j).cmp(&fallback(i)))
+            .then(i.cmp(&j))
+    });
+    order
 }
 
 /// The 95 % interval of the ROC AUC over bootstrap resamples; NaN where a
@@ -497,7 +619,7 @@ pub fn train_object(
     confidence: Option<(usize, ConfidenceInput)>,
 ) -> Result<(ViewDatabase, Option<ConfidenceChoice>), EvalError> {
     let mut db = train_rendered(object, config, training)?;
-    acch_pose::store_roll_search_deg(&mut db, training.roll.search_deg as f32);
+    acch_pose::store_roll_search_deg(&mut db, training.scenes.search_deg as f32);
     let Some((scenes, input)) = confidence.filter(|(n, _)| *n > 0) else {
         return Ok((db, None));
     };
@@ -508,7 +630,7 @@ pub fn train_object(
                 object,
                 scenes,
                 training.distance,
-                training.roll,
+                training.scenes,
                 training.seed,
             )?;
             tracing::info!("{choice}");
@@ -522,7 +644,7 @@ pub fn train_object(
                 scenes,
                 CONFIDENCE_SEED_BASE,
                 training.distance,
-                training.roll,
+                training.scenes,
             )?;
             let reliable = samples.iter().filter(|s| s.reliable).count();
             tracing::info!(
@@ -622,18 +744,25 @@ pub fn cache_dir(dir: Option<PathBuf>) -> PathBuf {
         .unwrap_or_else(|| std::env::temp_dir().join("acch"))
 }
 
-/// The file the default database of `object` is cached in: the format
-/// version, the build and the training recipe are in the name, so builds
-/// sharing a cache directory never read each other's databases.
-pub fn cached_database_path(object: &Object, dir: Option<PathBuf>) -> PathBuf {
-    // The size is in the name: a database's distances are metres of it.
+/// The file the default database of `object` is cached in (with
+/// `imaging`, the one whose confidence network saw imaged scenes): the
+/// format version, the build and the training recipe are in the name, so
+/// builds sharing a cache directory never read each other's databases.
+pub fn cached_database_path(object: &Object, dir: Option<PathBuf>, imaging: bool) -> PathBuf {
+    // The size is in the name: a database's distances are metres of it;
+    // a generated object's generator revision too: it is what draws it.
+    let generator = match acch_capture::generated_seed(object.name()) {
+        Some(_) => format!("-g{}", acch_capture::GENERATOR_REVISION),
+        None => String::new(),
+    };
     cache_dir(dir).join(format!(
-        "{}-{:.1}mm-v{}-{}-r{}.acchdb",
+        "{}{generator}-{:.1}mm-v{}-{}-r{}{}.acchdb",
         object.name(),
         object.radius_m() * 1000.0,
         acch_core::database::FORMAT_VERSION,
         env!("CARGO_PKG_VERSION"),
-        TRAINING_REVISION
+        TRAINING_REVISION,
+        if imaging { "-imaging" } else { "" }
     ))
 }
 
@@ -644,7 +773,18 @@ pub fn cached_database(
     object: &Arc<Object>,
     dir: Option<PathBuf>,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let path = cached_database_path(object, dir);
+    cached_database_with(object, dir, false)
+}
+
+/// [`cached_database`], or with `imaging` the default recipe with the
+/// confidence network trained on imaged scenes too
+/// ([`ConfidenceScenes::imaging`]).
+pub fn cached_database_with(
+    object: &Arc<Object>,
+    dir: Option<PathBuf>,
+    imaging: bool,
+) -> Result<(ViewDatabase, PathBuf), EvalError> {
+    let path = cached_database_path(object, dir, imaging);
     let dir = path.parent().map(PathBuf::from).unwrap_or_default();
     if path.exists() {
         match ViewDatabase::load(&path) {
@@ -653,17 +793,20 @@ pub fn cached_database(
         }
     }
     eprintln!(
-        "acch: training the database of '{}' (first use; cached in {})",
+        "acch: training the {}database of '{}' (first use; cached in {})",
+        if imaging { "imaging-aware " } else { "" },
         object.name(),
         path.display()
     );
     let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
-    let (db, choice) = train_object(
-        object,
-        &TrainConfig::default(),
-        &RenderedTraining::default(),
-        confidence,
-    )?;
+    let training = RenderedTraining {
+        scenes: ConfidenceScenes {
+            imaging,
+            ..ConfidenceScenes::default()
+        },
+        ..RenderedTraining::default()
+    };
+    let (db, choice) = train_object(object, &TrainConfig::default(), &training, confidence)?;
     if let Some(c) = choice {
         eprintln!("acch: {c}");
     }
@@ -688,6 +831,50 @@ mod tests {
         // The protocols' test scenes use small seeds (`--seed`, default 1)
         // and their frame seeds.
         assert!(training.start > 1000);
+    }
+
+    #[test]
+    fn the_input_with_the_higher_auc_wins_and_ties_go_to_the_fallback() {
+        let kinds = [Kind::Features, Kind::Response, Kind::Grounded];
+        assert_eq!(rank_inputs(&kinds, &[0.9, 0.8, 0.95]), [2, 0, 1]);
+        assert_eq!(rank_inputs(&kinds, &[0.9, 0.9, 0.9]), [1, 0, 2]);
+        assert_eq!(rank_inputs(&kinds[..2], &[0.7, 0.6]), [0, 1]);
+        assert_eq!(rank_inputs(&kinds[..2], &[0.6, 0.6]), [1, 0]);
+    }
+
+    #[test]
+    fn imaged_confidence_scenes_change_the_picture_and_plain_ones_do_not() {
+        let object = Arc::new(Object::builtin("tricolor").unwrap());
+        let base = SceneConfig::new(object, Background::A);
+        let mut families = std::collections::HashSet::new();
+        for k in 0..40 {
+            let c = imaging_condition(base.clone(), 5, k);
+            assert_eq!(c.effects, imaging_condition(base.clone(), 5, k).effects);
+            let changed: Vec<&str> = [
+                ("exposure", c.effects.exposure != 1.0),
+                (
+                    "colour",
+                    c.effects.colour_temp_k != base.effects.colour_temp_k,
+                ),
+                ("brightness", c.effects.brightness != 1.0),
+                ("noise", c.effects.noise_sigma != base.effects.noise_sigma),
+                ("blur", c.effects.blur_sigma != base.effects.blur_sigma),
+                ("jpeg", c.effects.jpeg_quality != base.effects.jpeg_quality),
+                ("occlusion", c.occlusion != 0.0),
+            ]
+            .into_iter()
+            .filter(|(_, changed)| *changed)
+            .map(|(n, _)| n)
+            .collect();
+            assert_eq!(changed.len(), 1, "condition {k}: {changed:?}");
+            families.insert(changed[0]);
+        }
+        assert_eq!(families.len(), 7, "{families:?}");
+        assert!(
+            !ConfidenceScenes::default()
+                .candidates()
+                .contains(&Kind::Grounded)
+        );
     }
 
     #[test]

@@ -14,8 +14,10 @@ use std::sync::Arc;
 #[derive(Args, Clone, Debug)]
 pub struct ObjectArgs {
     /// Built-in object: fruitbox (a 24 x 15 x 30 cm printed box), can (a
-    /// labelled drink can, 8.4 x 12 cm) or tricolor (three untextured
-    /// blocks, 10 cm long).
+    /// labelled drink can, 8.4 x 12 cm), tricolor (three untextured
+    /// blocks, 10 cm long) or generated-N (object N of the generated
+    /// population: a box, can, bottle or stack of blocks printed like
+    /// packaging, drawn from seed N).
     #[arg(long, value_name = "NAME", conflicts_with = "mesh")]
     pub object: Option<String>,
     /// A mesh file instead, by its extension: .obj (texture coordinates and
@@ -65,6 +67,38 @@ impl ObjectArgs {
         };
         Ok(Arc::new(object))
     }
+}
+
+/// The objects of a comma-separated list: built-in names and
+/// `generated-N`, `random:N` (N generated objects of the population of
+/// `population_seed`, see [`acch_capture::population`]) and mesh files
+/// (anything with a path separator or a file extension), read with `up`.
+pub fn load_objects(spec: &str, population_seed: u64, up: UpAxis) -> Result<Vec<Arc<Object>>> {
+    let mut objects = Vec::new();
+    for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        if let Some(n) = item.strip_prefix("random:") {
+            let n: usize = n
+                .parse()
+                .ok()
+                .filter(|&n| (1..=1000).contains(&n))
+                .with_context(|| format!("--objects {item}: N must be a number in 1..=1000"))?;
+            for name in acch_capture::population(population_seed, n) {
+                objects.push(Arc::new(Object::builtin(&name)?));
+            }
+        } else if item.contains('/') || item.contains('.') {
+            let object = Object::load_mesh(item, up)
+                .with_context(|| format!("--objects: loading mesh {item}"))?;
+            objects.push(Arc::new(object));
+        } else {
+            objects.push(Arc::new(
+                Object::builtin(item).with_context(|| format!("--objects {item}"))?,
+            ));
+        }
+    }
+    if objects.is_empty() {
+        bail!("--objects '{spec}' names no object");
+    }
+    Ok(objects)
 }
 
 /// Histogram and palette options (defaults: the paper's ACCH, chosen by

@@ -110,6 +110,20 @@ pub struct EvalArgs {
     /// occlusion, distance); default: all.
     #[arg(long, value_name = "NAMES", value_delimiter = ',')]
     families: Vec<String>,
+    /// robust: measure over several objects and pool the rows: a
+    /// comma-separated list of built-in names, generated-N, random:N (N
+    /// generated objects, a population drawn from --seed, so the
+    /// development and evaluation seeds never share an object) and mesh
+    /// files, e.g. random:50,fruitbox,can,../duck.obj. Each object's
+    /// default database is trained on first use and cached.
+    #[arg(long, value_name = "LIST", conflicts_with_all = ["object", "mesh"])]
+    objects: Option<String>,
+    /// robust: the databases whose confidence network also saw imaged
+    /// scenes and may read the absolute match value (`acch train
+    /// --confidence-imaging`), trained on first use and cached apart from
+    /// the default ones.
+    #[arg(long)]
+    confidence_imaging: bool,
     /// robust: plot the failure rate against each family's level (PNG).
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
@@ -159,6 +173,9 @@ pub enum SegmentArg {
 pub fn run(args: EvalArgs) -> Result<()> {
     if args.bop.is_some() || args.labels.is_some() {
         return run_dataset(args);
+    }
+    if let Some(spec) = &args.objects {
+        return run_population(&args, spec);
     }
     let object = args.object.load()?;
     let config = args.histogram.train_config()?;
@@ -228,13 +245,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             }
         }
         Protocol::Robust => {
-            let options = robust::RobustOptions {
-                n: args.n.unwrap_or(20),
-                seed: args.seed,
-                compare: args.compare,
-                families: args.families.clone(),
-            };
-            let (db, _) = acch_eval::train::cached_database(&object, None)?;
+            let options = robust_options(&args, 20);
+            let (db, _) =
+                acch_eval::train::cached_database_with(&object, None, args.confidence_imaging)?;
             let report = robust::robust(object, &db, &options)?;
             report.print();
             if let Some(path) = &args.json {
@@ -244,6 +257,44 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 report.write_plot(path)?;
             }
         }
+    }
+    Ok(())
+}
+
+/// The robust protocol's options, `default_n` poses per background
+/// unless `--n` says otherwise.
+fn robust_options(args: &EvalArgs, default_n: usize) -> robust::RobustOptions {
+    robust::RobustOptions {
+        n: args.n.unwrap_or(default_n),
+        seed: args.seed,
+        compare: args.compare,
+        families: args.families.clone(),
+        database: if args.confidence_imaging {
+            "imaging-aware"
+        } else {
+            "default"
+        },
+    }
+}
+
+/// `acch eval --protocol robust --objects LIST`.
+fn run_population(args: &EvalArgs, spec: &str) -> Result<()> {
+    if !matches!(args.protocol, Protocol::Robust) {
+        anyhow::bail!("--objects is measured by --protocol robust only");
+    }
+    let up = args.object.mesh_up.unwrap_or_default();
+    let objects = super::common::load_objects(spec, args.seed, up)?;
+    let options = robust_options(args, 4);
+    let database = |o: &Arc<acch_capture::Object>| {
+        acch_eval::train::cached_database_with(o, None, args.confidence_imaging).map(|(db, _)| db)
+    };
+    let report = robust::robust_population(&objects, &database, &options)?;
+    report.print();
+    if let Some(path) = &args.json {
+        report.write_json(path)?;
+    }
+    if let Some(path) = &args.plot {
+        report.write_plot(path)?;
     }
     Ok(())
 }

@@ -55,8 +55,17 @@ pub struct TrainArgs {
     /// acceptance from about 100 % to 54-92 % (docs/accuracy.md).
     #[arg(long, value_name = "DEG")]
     confidence_roll_deg: Option<f64>,
-    /// Confidence network input: the four response features, or the whole
-    /// response.
+    /// Image every other confidence-training scene under other light or a
+    /// worse camera (one of exposure 0.4-2.5x, 3000-7500 K, byte
+    /// brightness, noise, blur, JPEG, an occluding bar), recognise them
+    /// with the light search, and add the grounded input (the features and
+    /// the absolute match value) to the candidates: a network that rejects
+    /// weak matches instead of accepting them at 0.999 (docs/accuracy.md,
+    /// "A confidence that knows when it is out of its depth").
+    #[arg(long)]
+    confidence_imaging: bool,
+    /// Confidence network input: the four response features, the whole
+    /// response, or the features and the best match value (grounded).
     #[arg(long, value_enum, default_value = "auto")]
     confidence_input: ConfidenceInput,
     /// Confidence below which an estimate is rejected; stored in the
@@ -71,13 +80,16 @@ pub struct TrainArgs {
 /// What the confidence network reads.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum ConfidenceInput {
-    /// Both inputs trained; the one with the higher ROC AUC on validation
-    /// scenes (never a training or a test scene) kept.
+    /// Every candidate trained (features and response; with
+    /// --confidence-imaging grounded too); the one with the higher ROC AUC
+    /// on validation scenes (never a training or a test scene) kept.
     Auto,
     /// R_phi, D_phi, R_theta, D_theta (paper, section 4).
     Features,
     /// The whole match-value response, normalised by its maximum.
     Response,
+    /// The four features and the best match value, absolute.
+    Grounded,
 }
 
 impl From<ConfidenceInput> for train::ConfidenceInput {
@@ -89,6 +101,9 @@ impl From<ConfidenceInput> for train::ConfidenceInput {
             }
             ConfidenceInput::Response => {
                 train::ConfidenceInput::Only(acch_confidence::Kind::Response)
+            }
+            ConfidenceInput::Grounded => {
+                train::ConfidenceInput::Only(acch_confidence::Kind::Grounded)
             }
         }
     }
@@ -134,9 +149,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 background: args.background,
                 distance: args.distance,
                 seed: args.seed,
-                roll: train::ConfidenceRoll {
-                    scenes_deg: confidence_roll_deg,
+                scenes: train::ConfidenceScenes {
+                    roll_deg: confidence_roll_deg,
                     search_deg: args.roll_search_deg,
+                    imaging: args.confidence_imaging,
                 },
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));

@@ -128,15 +128,24 @@ impl Object {
     /// A built-in procedural object: `fruitbox` (a printed cereal-style box,
     /// a different multi-coloured pattern on every face), `can` (a cylinder
     /// with an asymmetric wrapped label and a plain metal top) or `tricolor`
-    /// (three untextured blocks in red, green and blue).
+    /// (three untextured blocks in red, green and blue); or `generated-N`,
+    /// object N of the generated population (a box, can, bottle or stack
+    /// of blocks printed like packaging, drawn from seed N).
     pub fn builtin(name: &str) -> Result<Object, CaptureError> {
+        if let Some(seed) = crate::generated::generated_seed(name) {
+            return Ok(crate::generated::generated(seed));
+        }
         match name {
             "fruitbox" => Ok(fruitbox()),
             "can" => Ok(can()),
             "tricolor" => Ok(tricolor()),
             _ => Err(CaptureError::UnknownObject {
                 name: name.to_string(),
-                valid: BUILTIN_OBJECTS.join(", "),
+                valid: format!(
+                    "{}, {}N (N a number)",
+                    BUILTIN_OBJECTS.join(", "),
+                    crate::generated::GENERATED_PREFIX
+                ),
             }),
         }
     }
@@ -629,7 +638,7 @@ fn check_size(what: &'static str, metres: f64) -> Result<(), CaptureError> {
 /// Texels per unit of the un-normalised builtin geometry.
 const TEXELS_PER_UNIT: f32 = 320.0;
 
-fn canvas_for(w: f32, h: f32, bg: [u8; 3]) -> Canvas {
+pub(crate) fn canvas_for(w: f32, h: f32, bg: [u8; 3]) -> Canvas {
     Canvas::new(
         (w * TEXELS_PER_UNIT).round() as u32,
         (h * TEXELS_PER_UNIT).round() as u32,

@@ -183,8 +183,72 @@ impl Canvas {
         self.polygon(&pts, c);
     }
 
+    /// A linear blend from `a` to `b` across the rectangle `[x0, y0, x1,
+    /// y1]`, left to right when `horizontal`, else top to bottom.
+    pub fn gradient(&mut self, region: [f64; 4], a: [u8; 3], b: [u8; 3], horizontal: bool) {
+        let (w, h) = (self.w as f64, self.h as f64);
+        let [x0, y0, x1, y1] = region;
+        self.shade(region, |x, y| {
+            let t = if horizontal {
+                (x / w - x0) / (x1 - x0).max(1e-9)
+            } else {
+                (y / h - y0) / (y1 - y0).max(1e-9)
+            };
+            mix(a, b, t.clamp(0.0, 1.0))
+        });
+    }
+
+    /// A photo-like patch over the rectangle: smooth value noise (two
+    /// octaves over a coarse lattice drawn from `seed`) mapped onto the
+    /// colour ramp `ramp`.
+    pub fn photo(&mut self, region: [f64; 4], ramp: &[[u8; 3]; 3], seed: u64) {
+        let h = self.h as f64;
+        let lattice = |i: i64, j: i64, octave: u64| {
+            let z = crate::derive_seed(seed ^ octave, (i as u64) << 32 ^ j as u64);
+            (z >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let noise = |x: f64, y: f64, octave: u64| {
+            let (i, j) = (x.floor() as i64, y.floor() as i64);
+            let (fx, fy) = (x - x.floor(), y - y.floor());
+            let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
+            let top = lattice(i, j, octave) * (1.0 - sx) + lattice(i + 1, j, octave) * sx;
+            let bottom =
+                lattice(i, j + 1, octave) * (1.0 - sx) + lattice(i + 1, j + 1, octave) * sx;
+            top * (1.0 - sy) + bottom * sy
+        };
+        self.shade(region, |x, y| {
+            let (u, v) = (x / h * 6.0, y / h * 6.0);
+            let t = (0.7 * noise(u, v, 0) + 0.3 * noise(2.0 * u, 2.0 * v, 1)).clamp(0.0, 1.0);
+            if t < 0.5 {
+                mix(ramp[0], ramp[1], t * 2.0)
+            } else {
+                mix(ramp[1], ramp[2], t * 2.0 - 1.0)
+            }
+        });
+    }
+
+    /// Sets every texel whose centre lies in the normalised rectangle to
+    /// `colour(x, y)` (texel units).
+    fn shade(&mut self, region: [f64; 4], colour: impl Fn(f64, f64) -> [u8; 3]) {
+        let (w, h) = (self.w as f64, self.h as f64);
+        let xa = (region[0] * w).round().max(0.0) as u32;
+        let ya = (region[1] * h).round().max(0.0) as u32;
+        let xb = ((region[2] * w).round().min(w)) as u32;
+        let yb = ((region[3] * h).round().min(h)) as u32;
+        for ty in ya..yb {
+            for tx in xa..xb {
+                self.data[(ty * self.w + tx) as usize] = colour(tx as f64 + 0.5, ty as f64 + 0.5);
+            }
+        }
+    }
+
     /// Converts to a texture (builds the mip chain).
     pub fn into_texture(self, repeat: bool) -> Texture {
         Texture::new(self.w, self.h, self.data, repeat)
     }
+}
+
+/// `a` blended towards `b` by `t` in [0, 1].
+fn mix(a: [u8; 3], b: [u8; 3], t: f64) -> [u8; 3] {
+    std::array::from_fn(|k| (a[k] as f64 * (1.0 - t) + b[k] as f64 * t).round() as u8)
 }

@@ -7,8 +7,9 @@
 //! ```text
 //! magic       8 bytes  "ACCHCONF"
 //! version     u32      MODEL_FORMAT_VERSION
-//! kind        u8       0 = features, 1 = response
-//! inputs      u32      network inputs (4 for features)
+//! kind        u8       0 = features, 1 = response, 2 = grounded
+//! inputs      u32      network inputs (4 for features, one per view for
+//!                      response, one per view and one for grounded)
 //! hidden      u32      hidden units
 //! min_sep     f32      minimum azimuth separation, degrees
 //! threshold   f32      acceptance threshold
@@ -44,6 +45,13 @@ pub enum Kind {
     /// variant: the match values are the input vector). Tied to a database
     /// with exactly as many views as the model has inputs.
     Response,
+    /// The normalised response and, as one more input, its maximum: the
+    /// absolute match value of the best view, the histogram intersection
+    /// with the nearest training view. It lets the network tell a weak
+    /// match (an image far from anything seen in training) from a strong
+    /// one of the same shape; the other two read only the shape. Tied to
+    /// a database with one view fewer than the model has inputs.
+    Grounded,
 }
 
 impl Kind {
@@ -51,6 +59,7 @@ impl Kind {
         match self {
             Kind::Features => 0,
             Kind::Response => 1,
+            Kind::Grounded => 2,
         }
     }
 
@@ -58,6 +67,7 @@ impl Kind {
         match id {
             0 => Some(Kind::Features),
             1 => Some(Kind::Response),
+            2 => Some(Kind::Grounded),
             _ => None,
         }
     }
@@ -79,6 +89,30 @@ impl Kind {
                 let (_, g) = scan_response(response)?;
                 Ok(response.iter().map(|&v| normalised(v, g)).collect())
             }
+            Kind::Grounded => {
+                let (_, g) = scan_response(response)?;
+                let mut x: Vec<f32> = response.iter().map(|&v| normalised(v, g)).collect();
+                x.push(g);
+                Ok(x)
+            }
+        }
+    }
+
+    /// Inputs of a model of this kind that do not depend on the database
+    /// (`None`: one per view).
+    pub fn fixed_inputs(self) -> Option<usize> {
+        match self {
+            Kind::Features => Some(FEATURE_COUNT),
+            Kind::Response | Kind::Grounded => None,
+        }
+    }
+
+    /// Inputs of a model of this kind over a database of `views` views.
+    pub fn inputs_for(self, views: usize) -> usize {
+        match self {
+            Kind::Features => FEATURE_COUNT,
+            Kind::Response => views,
+            Kind::Grounded => views + 1,
         }
     }
 }
@@ -133,7 +167,7 @@ impl TrainConfig {
     pub fn new(kind: Kind) -> TrainConfig {
         let (hidden, l2) = match kind {
             Kind::Features => (8, 1e-4),
-            Kind::Response => (16, 1e-2),
+            Kind::Response | Kind::Grounded => (16, 1e-2),
         };
         TrainConfig {
             kind,
@@ -238,11 +272,8 @@ pub fn train_with_progress(
             reason: "the input is empty".into(),
         });
     }
-    if config.kind == Kind::Features && d != FEATURE_COUNT {
-        return Err(ConfidenceError::InputSize {
-            expected: FEATURE_COUNT,
-            found: d,
-        });
+    if let Some(expected) = config.kind.fixed_inputs().filter(|&n| n != d) {
+        return Err(ConfidenceError::InputSize { expected, found: d });
     }
     let mut x = Vec::with_capacity(samples.len() * d);
     let mut labels = Vec::with_capacity(samples.len());
@@ -378,6 +409,19 @@ impl Model {
                 let (_, g) = scan_response(response)?;
                 Ok(self.net.predict(|i| normalised(response[i], g)))
             }
+            Kind::Grounded => {
+                if response.len() + 1 != self.net.inputs {
+                    return Err(ConfidenceError::InputSize {
+                        expected: self.net.inputs - 1,
+                        found: response.len(),
+                    });
+                }
+                let (_, g) = scan_response(response)?;
+                let n = response.len();
+                Ok(self
+                    .net
+                    .predict(|i| if i < n { normalised(response[i], g) } else { g }))
+            }
         }
     }
 
@@ -453,7 +497,7 @@ impl Model {
         let hidden = u32_at(17) as usize;
         let min_sep = f32_at(21);
         let threshold = f32_at(25);
-        if inputs == 0 || (kind == Kind::Features && inputs != FEATURE_COUNT) {
+        if inputs == 0 || kind.fixed_inputs().is_some_and(|n| n != inputs) {
             return corrupt(format!("{inputs} inputs for a {kind:?} model"));
         }
         if !(1..=MAX_HIDDEN).contains(&hidden) {
@@ -533,9 +577,10 @@ impl Model {
             .get(SECTION)
             .ok_or(ConfidenceError::MissingSection)?;
         let model = Model::from_bytes(bytes)?;
-        if model.kind == Kind::Response && model.inputs() != db.views().len() {
+        let expected = model.kind.inputs_for(db.views().len());
+        if model.inputs() != expected {
             return Err(ConfidenceError::InputSize {
-                expected: db.views().len(),
+                expected,
                 found: model.inputs(),
             });
         }

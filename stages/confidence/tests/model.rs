@@ -275,6 +275,67 @@ fn rates_synthetic_responses() {
     }
 }
 
+/// A weak match of a good shape: every response of the same sharp shape,
+/// half of them scaled down to a third (the object far from anything seen
+/// in training) and labelled unreliable. The shape-only inputs cannot tell
+/// them apart; the grounded input, which reads the absolute match value,
+/// must.
+#[test]
+fn only_the_grounded_input_rejects_weak_matches_of_a_good_shape() {
+    let (slices, views) = common::grid();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let make = |rng: &mut ChaCha8Rng, n: usize| -> Vec<(Vec<f32>, bool)> {
+        (0..n)
+            .map(|i| {
+                let mut r = common::response(rng, &views, true);
+                let strong = i % 2 == 0;
+                if !strong {
+                    let k: f32 = rng.random_range(0.25..0.4);
+                    r.iter_mut().for_each(|v| *v *= k);
+                }
+                (r, strong)
+            })
+            .collect()
+    };
+    let (train_set, test_set) = (make(&mut rng, 400), make(&mut rng, 200));
+    let labels: Vec<bool> = test_set.iter().map(|(_, l)| *l).collect();
+    let auc = |kind: Kind| {
+        let config = TrainConfig {
+            epochs: if kind == Kind::Features { 1500 } else { 500 },
+            ..TrainConfig::new(kind)
+        };
+        let samples: Samples = train_set
+            .iter()
+            .map(|(r, l)| {
+                (
+                    kind.input(&config.features, r, &slices, &views).unwrap(),
+                    *l,
+                )
+            })
+            .collect();
+        let model = train(&samples, &config).unwrap();
+        let scores: Vec<f32> = test_set
+            .iter()
+            .map(|(r, _)| model.rate(r, &slices, &views))
+            .collect();
+        roc_auc(&scores, &labels)
+    };
+    let (features, response, grounded) = (
+        auc(Kind::Features),
+        auc(Kind::Response),
+        auc(Kind::Grounded),
+    );
+    eprintln!("AUC features {features:.3}, response {response:.3}, grounded {grounded:.3}");
+    assert!(grounded > 0.98, "grounded AUC {grounded}");
+    for (name, auc) in [("features", features), ("response", response)] {
+        assert!(
+            auc < 0.75,
+            "{name} AUC {auc}: the shape alone told them apart"
+        );
+    }
+    assert_eq!(Kind::Grounded.inputs_for(10), 11);
+}
+
 fn small_model(kind: Kind, inputs: usize) -> Model {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let samples: Samples = (0..40)
@@ -295,7 +356,11 @@ fn small_model(kind: Kind, inputs: usize) -> Model {
 fn bytes_round_trip_exactly() {
     let (slices, views) = common::grid();
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    for (kind, inputs) in [(Kind::Features, 4), (Kind::Response, views.len())] {
+    for (kind, inputs) in [
+        (Kind::Features, 4),
+        (Kind::Response, views.len()),
+        (Kind::Grounded, views.len() + 1),
+    ] {
         let mut model = small_model(kind, inputs);
         model.set_threshold(0.65).unwrap();
         let back = Model::from_bytes(&model.to_bytes()).unwrap();

@@ -11,7 +11,9 @@
 use crate::{Detection, Detector};
 use acch_core::light::{TRAINING_LIGHT_K, colour_temperature_gains};
 use acch_core::{IndexView, Palette};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// The exposures searched, linear multiples of the training light:
 /// 2^(k/4) for k in -8..=6, 0.25 to 2.83 (about 0.55x to 1.55x in sRGB
@@ -59,8 +61,10 @@ const TRAINING: (usize, usize) = (8, 3);
 #[derive(Clone, Debug)]
 pub struct LightSearch {
     base: Palette,
+    /// Identifies `base` in the process's shared relit palettes.
+    fingerprint: u64,
     /// (exposure, colour temperature) grid indices -> palette relit so.
-    lights: BTreeMap<(usize, usize), Palette>,
+    lights: BTreeMap<(usize, usize), Arc<Palette>>,
     current: (usize, usize),
     /// Lights tried per weak frame besides the current one.
     per_frame: usize,
@@ -76,9 +80,10 @@ impl LightSearch {
     /// and again around the best, as single images need).
     pub fn new(palette: &Palette, per_frame: usize) -> Self {
         let mut lights = BTreeMap::new();
-        lights.insert(TRAINING, palette.clone());
+        lights.insert(TRAINING, Arc::new(palette.clone()));
         LightSearch {
             base: palette.clone(),
+            fingerprint: fingerprint(palette),
             lights,
             current: TRAINING,
             per_frame,
@@ -92,13 +97,13 @@ impl LightSearch {
         gains(self.current)
     }
 
-    /// The palette of light `at`, relit on first use.
+    /// The palette of light `at`, relit on first use (by this process:
+    /// searches of one palette share what another already built).
     fn palette(&mut self, at: (usize, usize)) -> &Palette {
-        let base = &self.base;
-        self.lights.entry(at).or_insert_with(|| {
-            base.relit(gains(at))
-                .expect("the grid's gains are finite and positive")
-        })
+        let (base, fingerprint) = (&self.base, self.fingerprint);
+        self.lights
+            .entry(at)
+            .or_insert_with(|| shared_relit(base, fingerprint, at))
     }
 
     /// Neighbour `k` (0..[`CANDIDATES`]) of the light in use: the other
@@ -186,6 +191,47 @@ impl LightSearch {
         }
         run(best, self.palette(best), detector, indices).0
     }
+}
+
+/// Relit palettes kept per process, at most this many (about 256 KB
+/// each: four palettes' whole grids).
+const SHARED_CAPACITY: usize = 4 * EXPOSURES.len() * COLOUR_TEMPERATURES_K.len();
+
+/// The palettes relit by any search of this process. Evaluations run one
+/// chain per worker, and each built the same tables again (68 ms each,
+/// most of an imaged confidence-training run's time).
+type SharedRelit = Mutex<HashMap<(u64, (usize, usize)), Arc<Palette>>>;
+
+fn shared_relit(base: &Palette, fingerprint: u64, at: (usize, usize)) -> Arc<Palette> {
+    static SHARED: OnceLock<SharedRelit> = OnceLock::new();
+    let shared = SHARED.get_or_init(Default::default);
+    let key = (fingerprint, at);
+    if let Some(p) = shared.lock().unwrap_or_else(|e| e.into_inner()).get(&key) {
+        return p.clone();
+    }
+    // Built outside the lock: two workers may build one table at once, and
+    // the second keeps the first's.
+    let relit = Arc::new(
+        base.relit(gains(at))
+            .expect("the grid's gains are finite and positive"),
+    );
+    let mut map = shared.lock().unwrap_or_else(|e| e.into_inner());
+    if map.len() >= SHARED_CAPACITY {
+        map.clear();
+    }
+    map.entry(key).or_insert(relit).clone()
+}
+
+/// What identifies a palette's lookup tables: its colour space, centres
+/// and reject distance.
+fn fingerprint(palette: &Palette) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    format!("{:?}", palette.space()).hash(&mut h);
+    palette.reject_distance().to_bits().hash(&mut h);
+    for c in palette.centres() {
+        c.map(f32::to_bits).hash(&mut h);
+    }
+    h.finish()
 }
 
 /// The `k`-th nearest of `0..n` to `at`, `at` left out, the lower of two
