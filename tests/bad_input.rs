@@ -122,6 +122,21 @@ fn nan_and_negative_command_line_values_name_the_option() {
             &["run", "--stall-timeout", "nan", "--frames", "1"][..],
             "stall-timeout",
         ),
+        (
+            &[
+                "train",
+                "--images",
+                "nowhere",
+                "--confidence-imaging",
+                "--out",
+                "x.acchdb",
+            ][..],
+            "--confidence-imaging",
+        ),
+        (
+            &["eval", "--protocol", "robust", "--objects", "random:5000"][..],
+            "random:5000",
+        ),
     ] {
         let out = acch(dir.path(), args);
         fails_naming(&out, what);

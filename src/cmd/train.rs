@@ -122,6 +122,11 @@ pub fn run(args: TrainArgs) -> Result<()> {
             bail!("{name} {deg} must be a finite number of degrees in [0, 180]");
         }
     }
+    if args.images.is_some() && args.confidence_imaging {
+        bail!(
+            "--confidence-imaging trains the confidence network on rendered scenes; with --images there is none"
+        );
+    }
     if args.images.is_some() && args.roll_search_deg > 0.0 {
         bail!(
             "--roll-search-deg trains the confidence network on rendered scenes; with --images there is none (search the roll at run time with roll_search_deg in the config)"
