@@ -106,33 +106,29 @@ fn a_plain_zenoh_subscriber_gets_payload_and_attachment() {
     assert_eq!(publisher.key(), key);
 
     let sub = b.declare_subscriber(key.as_str()).wait().unwrap();
-    // Publish until the subscription has reached the publisher's side.
+    // Publish until four samples have arrived: the first ones go out before
+    // the subscription reaches the publisher's side, and congestion control
+    // Drop (as rmw_zenoh's) may lose one on a loaded machine, so arrival is
+    // not asserted per sample; what each sample carries is.
     let start = Instant::now();
     let mut sent = 0u32;
-    let first = loop {
+    let mut samples = Vec::new();
+    while samples.len() < 4 {
         sent += 1;
         publisher
             .publish(&pose(sent), 1_000 + i64::from(sent))
             .unwrap();
         if let Ok(Some(s)) = sub.recv_timeout(Duration::from_millis(100)) {
-            break s;
+            samples.push(s);
         }
-        assert!(start.elapsed() < DEADLINE, "no sample arrived on {key}");
-    };
-    // Then everything that follows arrives in order, one sequence number apart.
-    let mut samples = vec![first];
-    for _ in 0..3 {
-        sent += 1;
-        publisher
-            .publish(&pose(sent), 1_000 + i64::from(sent))
-            .unwrap();
-    }
-    while samples.len() < 4 {
-        let s = sub
-            .recv_timeout(DEADLINE)
-            .unwrap()
-            .expect("the remaining samples arrive");
-        samples.push(s);
+        while let Ok(Some(s)) = sub.try_recv() {
+            samples.push(s);
+        }
+        assert!(
+            start.elapsed() < DEADLINE,
+            "{} of 4 samples arrived on {key}",
+            samples.len()
+        );
     }
     let mut last_seq = None;
     for s in &samples {
@@ -158,12 +154,12 @@ fn a_plain_zenoh_subscriber_gets_payload_and_attachment() {
         assert_eq!(
             att.sequence,
             i64::from(i),
-            "the first sample ever published is 1"
+            "the sequence counts publications from 1"
         );
         assert_eq!(att.gid, graph::gid(publisher.token()));
         assert_eq!(att.gid, publisher.gid());
         if let Some(prev) = last_seq {
-            assert_eq!(att.sequence, prev + 1);
+            assert!(att.sequence > prev, "samples arrive in order");
         }
         last_seq = Some(att.sequence);
     }
