@@ -104,6 +104,15 @@ fn nan_negative_and_out_of_range_parameters_name_the_key() {
         ("source = \"webcam\"", "webcam"),
         ("background = \"mars\"", "mars"),
         ("[zenoh]\nlisten = \"tcp/127.0.0.1:7447\"", "listen"),
+        (
+            "objects = [\"fruitbox\", \"can\"]\nobjects_in_view = 3",
+            "objects_in_view = 3",
+        ),
+        (
+            "objects = [\"fruitbox\", \"can\"]\nrerun = \"spawn\"",
+            "rerun = spawn",
+        ),
+        ("objects = [\"fruitbox\", \"\"]", "objects = \"\""),
     ] {
         let out = run_with_config(text);
         fails_naming(&out, key);
@@ -136,6 +145,26 @@ fn nan_and_negative_command_line_values_name_the_option() {
         (
             &["eval", "--protocol", "robust", "--objects", "random:5000"][..],
             "random:5000",
+        ),
+        (
+            &["run", "--in-process", "--objects", "fruitbox,random:99"][..],
+            "random:99",
+        ),
+        (
+            &[
+                "eval",
+                "--protocol",
+                "multi",
+                "--objects",
+                "fruitbox",
+                "--in-view",
+                "0",
+            ][..],
+            "--in-view 0",
+        ),
+        (
+            &["bench", "--objects", "fruitbox,can", "--known", "4"][..],
+            "--known 4",
         ),
     ] {
         let out = acch(dir.path(), args);

@@ -10,8 +10,7 @@
 mod common;
 
 use common::{Guard, free_port};
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 fn python_has_zenoh() -> bool {
@@ -32,23 +31,7 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
     // The subscriber listens; the pipeline connects to it (so the subscriber
     // is up before the first seed).
-    let mut sub = Guard(
-        Command::new("python3")
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/pipeline_subscriber.py"
-            ))
-            .arg(format!("tcp/127.0.0.1:{sub_port}"))
-            .arg("fruitbox")
-            .arg(frames.to_string())
-            .arg("240")
-            .stdout(Stdio::piped())
-            .spawn()
-            .unwrap(),
-    );
-    let mut lines = BufReader::new(sub.0.stdout.take().unwrap()).lines();
-    let ready = lines.next().unwrap().unwrap();
-    assert!(ready.contains("ready"), "{ready}");
+    let (_sub, mut lines) = common::zenoh_subscriber("fruitbox", sub_port, frames);
 
     let config = dir.path().join("pipeline.toml");
     std::fs::write(

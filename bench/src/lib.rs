@@ -14,6 +14,8 @@
 //! report and a PNG of latency CDFs. End-to-end latency starts when capture
 //! publishes the frame (after rendering it), as in `acch run`.
 
+mod multi;
+
 use acch_viz::plot::{PlotError, draw_err, draw_png};
 use plotters::prelude::*;
 use serde::Serialize;
@@ -118,6 +120,35 @@ pub struct BenchArgs {
     /// all runs, so a slow spell of the machine weighs on every mode alike.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeat: u32,
+    /// Measure several objects at once instead (`acch run --in-process
+    /// --objects`, 640x480 at 30 fps): the known objects, in order, as
+    /// `acch run --objects` takes them; the first --known of them are
+    /// known and the first --in-view of those in view.
+    #[arg(long, value_name = "LIST")]
+    pub objects: Option<String>,
+    /// With --objects: how many objects are known, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,4,8",
+        requires = "objects"
+    )]
+    pub known: Vec<usize>,
+    /// With --objects: how many of the known are in view, comma-separated
+    /// (each at most the number known).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,3,4",
+        requires = "objects"
+    )]
+    pub in_view: Vec<usize>,
+    /// With --objects: the JSON report.
+    #[arg(long, default_value = "bench/results/multi.json")]
+    pub objects_json: PathBuf,
+    /// With --objects: the plot of e2e latency against objects known.
+    #[arg(long, default_value = "bench/results/multi.png")]
+    pub objects_png: PathBuf,
     /// Also measure the GStreamer source (mode `gst`, at the rates above
     /// 0): the same scene rendered to PNG files first, then played by
     /// `multifilesrc ! pngdec` at the rate, so capture's cost per frame
@@ -289,7 +320,18 @@ fn run_once(
         "acch bench: {mode} {w}x{h} at {fps} fps, {} frames",
         args.frames
     );
-    let what = format!("{mode} {w}x{h} {fps} fps");
+    measure(args, mode, cmd, &out, format!("{mode} {w}x{h} {fps} fps"))
+}
+
+/// Runs `cmd`, an `acch run --samples --json out`, and reads its samples,
+/// the first `--warmup` frames set apart.
+fn measure(
+    args: &BenchArgs,
+    mode: &'static str,
+    mut cmd: Command,
+    out: &Path,
+    what: String,
+) -> Result<RunResult> {
     let o = cmd
         .stdout(std::process::Stdio::null())
         .output()
@@ -300,8 +342,8 @@ fn run_once(
             stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
         });
     }
-    let text = std::fs::read_to_string(&out).map_err(io_err(&out))?;
-    let _ = std::fs::remove_file(&out);
+    let text = std::fs::read_to_string(out).map_err(io_err(out))?;
+    let _ = std::fs::remove_file(out);
     let mut summary: Value =
         serde_json::from_str(&text).map_err(|_| BenchError::Summary { what: what.clone() })?;
     let samples = summary
@@ -431,6 +473,9 @@ fn machine() -> Machine {
 /// Runs the benchmark: every mode of every configuration, the JSON report
 /// and the plot.
 pub fn run(args: BenchArgs) -> Result<()> {
+    if let Some(list) = &args.objects {
+        return multi::run(&args, list);
+    }
     if let Err(e) = args.stage_cpus.parse::<acch_ipc::sched::StageCpus>() {
         return Err(BenchError::Input(format!(
             "--stage-cpus {}: {e}",

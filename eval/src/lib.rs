@@ -9,6 +9,8 @@
 //! - [`roll`]: a camera that rolls, a database trained to search it;
 //! - [`robust`]: exposure, colour temperature, noise, blur, JPEG,
 //!   occlusion and distance, with and without the light search;
+//! - [`multi`]: several known objects in one scene, each with the others
+//!   known and alone;
 //! - [`dataset`]: labelled photographs the user brings, a [`bop`] split or
 //!   a folder with labels.csv;
 //! - [`train`]: an object's whole database, and the cached default.
@@ -18,6 +20,7 @@
 
 pub mod bop;
 pub mod dataset;
+pub mod multi;
 pub mod protocol;
 pub mod review;
 pub mod robust;

@@ -270,6 +270,21 @@ pub fn frame_of(r: &Rendered, sequence: u64, arm: bool, radius_m: f64) -> FrameH
     f
 }
 
+/// Intersection over union of two masks (non-zero = set).
+pub fn mask_iou(a: &[u8], b: &[u8]) -> f64 {
+    let (mut inter, mut union) = (0u64, 0u64);
+    for (&x, &y) in a.iter().zip(b) {
+        let (x, y) = (x != 0, y != 0);
+        inter += (x && y) as u64;
+        union += (x || y) as u64;
+    }
+    if union == 0 {
+        0.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
 /// The chain of the deployed stages over `db`, for frames of the default
 /// camera at the known training distance (as every protocol runs it).
 pub fn chain(db: &ViewDatabase) -> Result<Chain, EvalError> {
@@ -283,18 +298,25 @@ pub fn chain_at(
     distance_m: f64,
     light_search: usize,
 ) -> Result<Chain, EvalError> {
-    let k = acch_capture::Intrinsics::default();
     Ok(Chain::build(
         db,
-        &StageSettings {
-            width: k.width,
-            height: k.height,
-            distance_m: Some(distance_m),
-            unrated: false,
-            roll_search_deg: acch_pose::trained_roll_search_deg(db),
-            light_search,
-        },
+        &settings_at(db, distance_m, light_search),
     )?)
+}
+
+/// The settings every protocol builds `db`'s stages with: the default
+/// camera `distance_m` metres from the object, the roll search the
+/// database was trained with, `light_search` lights per weak image.
+pub fn settings_at(db: &ViewDatabase, distance_m: f64, light_search: usize) -> StageSettings {
+    let k = acch_capture::Intrinsics::default();
+    StageSettings {
+        width: k.width,
+        height: k.height,
+        distance_m: Some(distance_m),
+        unrated: false,
+        roll_search_deg: acch_pose::trained_roll_search_deg(db),
+        light_search,
+    }
 }
 
 #[cfg(test)]

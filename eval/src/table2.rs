@@ -282,7 +282,7 @@ pub fn table2(
                 continue;
             };
             segment.frame_mask(w, h, &mut mask);
-            sum_iou += iou(&mask, truth_mask);
+            sum_iou += protocol::mask_iou(&mask, truth_mask);
             let estimate = out.pose().done();
             let failed = fails_or_none(estimate.map(|e| (e.theta_deg, e.phi_deg)));
             failures += failed as usize;
@@ -501,20 +501,5 @@ impl Table2Report {
         println!(
             "left: all estimates; right of |: accepted by the confidence network. lost = not found; fail(roi) = scale from the segmented region; fail(true) = true mask; false+ = detections with the object out of view"
         );
-    }
-}
-
-/// Intersection over union of two masks (non-zero = set).
-fn iou(a: &[u8], b: &[u8]) -> f64 {
-    let (mut inter, mut union) = (0u64, 0u64);
-    for (&x, &y) in a.iter().zip(b) {
-        let (x, y) = (x != 0, y != 0);
-        inter += (x && y) as u64;
-        union += (x || y) as u64;
-    }
-    if union == 0 {
-        0.0
-    } else {
-        inter as f64 / union as f64
     }
 }

@@ -818,6 +818,32 @@ pub fn cached_database_with(
     Ok((db, path))
 }
 
+/// The default recipe for `object`, its confidence network trained on
+/// scenes rolled within ±`search_deg` and estimated with that roll search
+/// (which runs then use): for a camera that rolls, or objects seen off the
+/// optical axis. Trained afresh, not cached.
+pub fn trained_for_roll(object: &Arc<Object>, search_deg: f64) -> Result<ViewDatabase, EvalError> {
+    if !(search_deg.is_finite() && (0.0..=180.0).contains(&search_deg)) {
+        return Err(EvalError::Input(format!(
+            "--roll-search-deg {search_deg} must be a finite number of degrees in [0, 180]"
+        )));
+    }
+    eprintln!(
+        "acch: training the database of '{}' for a roll search of ±{search_deg}°",
+        object.name()
+    );
+    let training = RenderedTraining {
+        scenes: ConfidenceScenes {
+            roll_deg: search_deg,
+            search_deg,
+            imaging: false,
+        },
+        ..RenderedTraining::default()
+    };
+    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
+    Ok(train_object(object, &TrainConfig::default(), &training, confidence)?.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -65,6 +65,11 @@ impl Chain {
         &mut self.stages
     }
 
+    /// The last frame's result.
+    pub fn last(&self) -> Option<Seeded> {
+        self.last
+    }
+
     /// What each stage counted so far.
     pub fn counters(&self) -> &[StageCounters; 5] {
         &self.counters
@@ -73,11 +78,34 @@ impl Chain {
     /// Runs every stage on frame `frame` (packed RGB `rgb`). Its trail gets
     /// each stage's start and end; capture's times are the caller's.
     pub fn process(&mut self, frame: &FrameHeader, rgb: &[u8]) -> Seeded {
+        let recognised = self.recognise(frame, rgb);
+        self.finish(&recognised)
+    }
+
+    /// Recognition alone on frame `frame`: the window, before the later
+    /// stages see it (several objects' windows are compared first, see
+    /// [`crate::multi`]). [`finish`](Self::finish) goes on from here.
+    pub fn recognise(&mut self, frame: &FrameHeader, rgb: &[u8]) -> Recognised {
+        let s = &mut self.stages.recognition;
+        step(
+            s,
+            frame,
+            rgb,
+            &mut self.buffers[0],
+            now_ns(),
+            &mut self.counters[0],
+        )
+    }
+
+    /// Segmentation, pose, confidence and seeding on what
+    /// [`recognise`](Self::recognise) returned for the last frame (its
+    /// detection may since have been withdrawn).
+    pub fn finish(&mut self, recognised: &Recognised) -> Seeded {
         let [rec, seg, pose] = &mut self.buffers;
-        let [c_rec, c_seg, c_pose, c_conf, c_seed] = &mut self.counters;
+        let [_, c_seg, c_pose, c_conf, c_seed] = &mut self.counters;
         let s = &mut self.stages;
-        let r = step(&mut s.recognition, frame, rgb, rec, now_ns(), c_rec);
-        let g = step(&mut s.segmentation, &r, rec, seg, now_ns(), c_seg);
+        let r = recognised;
+        let g = step(&mut s.segmentation, r, rec, seg, now_ns(), c_seg);
         let p = step(&mut s.pose, &g, seg, pose, now_ns(), c_pose);
         let c = step(&mut s.confidence, &p, pose, &mut [], now_ns(), c_conf);
         let out = step(&mut s.seeding, &c, &[], &mut [], now_ns(), c_seed);
@@ -167,6 +195,19 @@ pub fn run_source(
     arm: Option<&crate::ros2::ArmFeed>,
     observer: &mut dyn Observe,
 ) -> Result<u64, RunSourceError> {
+    run_frames(source, (frames, pacing), arm, |frame, rgb| {
+        chain.process_observed(frame, rgb, observer).map(|_| ())
+    })
+}
+
+/// [`run_source`] with `each` doing what is done with a frame (several
+/// objects' chains, say).
+pub fn run_frames(
+    source: &mut Source,
+    (frames, pacing): (u64, Pacing),
+    arm: Option<&crate::ros2::ArmFeed>,
+    mut each: impl FnMut(&FrameHeader, &[u8]) -> Result<(), ObserveError>,
+) -> Result<u64, RunSourceError> {
     let t0 = Instant::now();
     let mut first_recorded = None;
     let mut n = 0u64;
@@ -190,7 +231,7 @@ pub fn run_source(
             arm.stamp(&mut p.header, captured);
         }
         p.header.envelope_mut().trail.stages[0].published_ns = now_ns();
-        chain.process_observed(&p.header, p.pixels.bytes(), observer)?;
+        each(&p.header, p.pixels.bytes())?;
         source.recycle(p.pixels);
         n += 1;
     }

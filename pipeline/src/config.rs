@@ -1,7 +1,7 @@
 //! The pipeline's configuration (`pipeline.toml`): every process of a run
 //! reads the same file, every key is optional.
 
-use crate::source::{CameraFile, SourceSpec, SyntheticCamera};
+use crate::source::{CameraFile, SourceSpec, SyntheticCamera, SyntheticGroup};
 use crate::stages::StageSettings;
 use acch_capture::calibration::Calibration;
 use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory};
@@ -31,6 +31,22 @@ pub struct PipelineConfig {
     pub mesh_unit_m: Option<f64>,
     /// View database; the launcher fills in the cached default.
     pub db: Option<PathBuf>,
+    /// Several known objects at once (`acch run --objects`): each a
+    /// built-in name, `generated-N`, a mesh file or a view database
+    /// (`.acchdb`). When set it replaces `object`, `mesh` and `db`; the
+    /// run is in one process (`--in-process`).
+    pub objects: Vec<String>,
+    /// The view database of each of `objects`, in order; the launcher
+    /// fills in the cached defaults.
+    pub object_dbs: Vec<PathBuf>,
+    /// How many of `objects` the simulated scene shows, the first ones
+    /// (0: all).
+    pub objects_in_view: usize,
+    /// Threads the objects' chains share per frame (0: one per CPU the
+    /// run may use, at most one per object). With several objects and
+    /// `stage_cpus = "auto"` the run is not pinned, so they spread over
+    /// every CPU.
+    pub object_threads: usize,
     /// Where default databases are cached.
     pub cache_dir: Option<PathBuf>,
     /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv),
@@ -192,6 +208,10 @@ impl Default for PipelineConfig {
             instance: std::process::id().to_string(),
             object: "fruitbox".into(),
             db: None,
+            objects: Vec::new(),
+            object_dbs: Vec::new(),
+            objects_in_view: 0,
+            object_threads: 0,
             cache_dir: None,
             source: "synthetic".into(),
             camera_info: None,
@@ -435,6 +455,7 @@ impl PipelineConfig {
                 "must be letters, digits, - or _",
             ));
         }
+        self.validate_objects()?;
         if self.zenoh.prefix.is_empty() || self.zenoh.prefix.contains(['*', '$', '?', '#']) {
             return Err(bad(
                 "zenoh.prefix",
@@ -443,6 +464,93 @@ impl PipelineConfig {
             ));
         }
         Ok(())
+    }
+
+    /// Checks `objects`, `object_dbs` and `objects_in_view`, and refuses
+    /// what a run of several objects does not do yet.
+    fn validate_objects(&self) -> Result<(), ConfigError> {
+        let bad = |key, value: String, why| Err(ConfigError::Invalid { key, value, why });
+        let n = self.objects.len();
+        if n > acch_capture::MAX_SCENE_OBJECTS {
+            return bad(
+                "objects",
+                format!("{n} objects"),
+                "must be at most 16 objects",
+            );
+        }
+        if let Some(o) = self.objects.iter().find(|o| o.trim().is_empty()) {
+            return bad("objects", format!("{o:?}"), "names an empty object");
+        }
+        if !self.object_dbs.is_empty() && self.object_dbs.len() != n {
+            return bad(
+                "object_dbs",
+                format!("{} files", self.object_dbs.len()),
+                "must name one database per entry of objects",
+            );
+        }
+        if self.objects_in_view > n {
+            return bad(
+                "objects_in_view",
+                self.objects_in_view.to_string(),
+                "must be at most the number of objects (0: all)",
+            );
+        }
+        if n == 0 {
+            return Ok(());
+        }
+        if self.rerun.is_some() {
+            return bad(
+                "rerun",
+                self.rerun.clone().unwrap_or_default(),
+                "the viewer shows one object: run it without objects = [...]",
+            );
+        }
+        if let Some(r) = &self.record {
+            return bad(
+                "record",
+                r.display().to_string(),
+                "recordings hold one object: run it without objects = [...]",
+            );
+        }
+        if self.ros2.enabled {
+            return bad(
+                "ros2.enabled",
+                "true".into(),
+                "ROS 2 topics are published for one object: run it without objects = [...]",
+            );
+        }
+        Ok(())
+    }
+
+    /// The entries of `objects`, parsed.
+    pub fn object_entries(&self) -> Vec<ObjectEntry> {
+        self.objects.iter().map(|o| ObjectEntry::parse(o)).collect()
+    }
+
+    /// The objects the simulated scene of several objects shows: the first
+    /// `objects_in_view` (0: all) of `objects`.
+    pub fn scene_objects(&self) -> Result<Vec<acch_capture::Object>, ConfigError> {
+        let n = match self.objects_in_view {
+            0 => self.objects.len(),
+            k => k,
+        };
+        let up = self.mesh_up.parse().map_err(ConfigError::Object)?;
+        self.object_entries()
+            .into_iter()
+            .take(n)
+            .map(|e| e.object(up, self.mesh_unit_m))
+            .collect()
+    }
+
+    /// The databases of `objects` (`object_dbs`), read.
+    pub fn object_databases(&self) -> Result<Vec<ViewDatabase>, ConfigError> {
+        if self.object_dbs.len() != self.objects.len() {
+            return Err(ConfigError::NoDatabase);
+        }
+        self.object_dbs
+            .iter()
+            .map(|p| ViewDatabase::load(p).map_err(ConfigError::Database))
+            .collect()
     }
 
     /// Where stage process `pid` of this run writes its counters when it
@@ -598,6 +706,23 @@ impl PipelineConfig {
         if let Some(file) = s.strip_prefix("mcap:") {
             return Ok(SourceSpec::Mcap(file.into()));
         }
+        if !self.objects.is_empty() {
+            let [lo, hi] = self.elevation_deg;
+            return Ok(SourceSpec::Group(SyntheticGroup {
+                objects: self
+                    .scene_objects()?
+                    .into_iter()
+                    .map(std::sync::Arc::new)
+                    .collect(),
+                background: self.background.parse().map_err(ConfigError::Object)?,
+                textures: acch_capture::TextureSet::HeldOut,
+                seed: self.seed,
+                width: self.width,
+                height: self.height,
+                fps: self.fps,
+                elevation_deg: (lo, hi),
+            }));
+        }
         let object = self.scene_object()?;
         let [lo, hi] = self.elevation_deg;
         let distance_m = self
@@ -679,6 +804,19 @@ impl PipelineConfig {
             roll_search_deg: self.roll_search(db),
             light_search: self.light_search_per_frame,
         })
+    }
+
+    /// [`settings`](Self::settings) for one of several objects: the
+    /// simulated group stands [`acch_capture::MULTI_DISTANCE`] radii away
+    /// (as far, in its training distance's radii), unless `distance_m`
+    /// says otherwise.
+    pub fn object_settings(&self, db: &ViewDatabase) -> Result<StageSettings, ConfigError> {
+        let mut s = self.settings(db)?;
+        if self.source == "synthetic" && self.distance_m.is_none() {
+            let group = acch_capture::MULTI_DISTANCE / DEFAULT_DISTANCE;
+            s.distance_m = Some(db.train_distance_m as f64 * group);
+        }
+        Ok(s)
     }
 
     /// The roll search of a run over `db`: `roll_search_deg`, or the one
@@ -868,6 +1006,57 @@ mod tests {
                     prop_assert!(m.contains("TOML") || m.contains(" = "), "{}", m);
                 }
             }
+        }
+    }
+}
+
+/// One entry of `objects`: what it names.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ObjectEntry {
+    /// A built-in name or `generated-N`.
+    Builtin(String),
+    /// A mesh file (anything with a path separator or an extension).
+    Mesh(PathBuf),
+    /// A view database file (`.acchdb`): no mesh, so nothing to render.
+    Database(PathBuf),
+}
+
+impl ObjectEntry {
+    /// Reads an entry.
+    pub fn parse(entry: &str) -> Self {
+        let e = entry.trim();
+        if e.ends_with(".acchdb") {
+            ObjectEntry::Database(e.into())
+        } else if e.contains('/') || e.contains('.') {
+            ObjectEntry::Mesh(e.into())
+        } else {
+            ObjectEntry::Builtin(e.into())
+        }
+    }
+
+    /// The object to render, read with `up` and in `unit_m` metres.
+    pub fn object(
+        &self,
+        up: acch_capture::UpAxis,
+        unit_m: Option<f64>,
+    ) -> Result<acch_capture::Object, ConfigError> {
+        match self {
+            ObjectEntry::Builtin(name) => {
+                acch_capture::Object::builtin(name).map_err(ConfigError::Object)
+            }
+            ObjectEntry::Mesh(path) => {
+                let o = acch_capture::Object::load_mesh(path, up).map_err(ConfigError::Object)?;
+                match unit_m {
+                    Some(unit) => o.with_mesh_unit_m(unit).map_err(ConfigError::Object),
+                    None => Ok(o),
+                }
+            }
+            ObjectEntry::Database(path) => Err(ConfigError::Invalid {
+                key: "objects",
+                value: path.display().to_string(),
+                why: "a view database has no mesh for the simulated scene: name the object \
+                      (a built-in name or a mesh file), or use another source",
+            }),
         }
     }
 }

@@ -306,9 +306,19 @@ impl ZenohSink {
     /// Opens a session on `cfg`'s zenoh endpoints and declares its object's
     /// publishers.
     pub fn open(cfg: &crate::PipelineConfig) -> Result<Self, crate::observe::ObserveError> {
-        let (config, object) = (&cfg.zenoh, cfg.object.as_str());
-        let session = acch_ipc::open_session(&config.listen, &config.connect)
+        let session = acch_ipc::open_session(&cfg.zenoh.listen, &cfg.zenoh.connect)
             .map_err(acch_ipc::IpcError::from)?;
+        Self::on_session(session, cfg, &cfg.object)
+    }
+
+    /// The sink of `object` on an open session (several objects share
+    /// one).
+    pub fn on_session(
+        session: zenoh::Session,
+        cfg: &crate::PipelineConfig,
+        object: &str,
+    ) -> Result<Self, crate::observe::ObserveError> {
+        let config = &cfg.zenoh;
         let publisher = |key: String| {
             acch_ipc::Publisher::declare(&session, &key).map_err(acch_ipc::IpcError::from)
         };

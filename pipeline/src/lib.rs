@@ -24,6 +24,7 @@ pub mod frame;
 #[cfg(feature = "gstreamer")]
 pub mod gst;
 pub mod json;
+pub mod multi;
 pub mod node;
 pub mod observe;
 pub mod observers;
@@ -40,6 +41,7 @@ pub mod wire;
 pub use chain::{Chain, Pacing, run_source};
 pub use config::{ConfigError, PipelineConfig};
 pub use frame::FrameHeader;
+pub use multi::MultiChain;
 pub use observe::{Observe, ObserveError, Observer};
 pub use run::{RunError, RunOptions, RunSummary, run_in_process, run_process, run_processes};
 pub use source::{Source, SourceError, SourceSpec, SyntheticCamera};

@@ -6,6 +6,7 @@
 use crate::chain::{Chain, Pacing, run_source};
 use crate::config::{ConfigError, Pace, PipelineConfig};
 use crate::json::{JsonLines, ZenohSink};
+use crate::multi::MultiChain;
 use crate::node::{NodeError, READY, START};
 use crate::observe::{Each, Observe, ObserveError, Observer};
 use crate::observers::{RunRecording, Viewing};
@@ -97,6 +98,12 @@ pub enum RunError {
     /// A stop signal came while starting.
     #[error("interrupted while starting")]
     Interrupted,
+    /// Several objects asked of the stage processes.
+    #[error(
+        "objects = [{0}]: several objects run in one process only (acch run --in-process); \
+         the stage processes carry one object"
+    )]
+    SeveralObjects(String),
 }
 
 impl From<acch_ipc::OpenError> for RunError {
@@ -190,6 +197,23 @@ pub struct RunSummary {
     /// Every frame's latencies (with `samples`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub samples: Option<Samples>,
+    /// With several objects: what the stages made of each (the top-level
+    /// outcomes and latencies are those of each frame's last object to
+    /// finish).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub objects: Vec<ObjectOutcomes>,
+}
+
+/// One object's outcomes in a run of several.
+#[derive(Serialize, Debug)]
+pub struct ObjectOutcomes {
+    /// The object.
+    pub object: String,
+    /// What the stages made of it.
+    #[serde(flatten)]
+    pub outcomes: Outcomes,
+    /// Frames whose detection was withdrawn for another object's.
+    pub suppressed: u64,
 }
 
 impl RunSummary {
@@ -233,6 +257,7 @@ impl RunSummary {
             placement: None,
             cpu_latency_us: cfg.cpu_latency_us,
             samples: None,
+            objects: Vec::new(),
         }
     }
 }
@@ -341,6 +366,9 @@ impl LocalObservers {
 /// stage processes), over the configured source, with the configured
 /// observers.
 pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary, RunError> {
+    if !cfg.objects.is_empty() {
+        return run_objects(cfg, opts);
+    }
     cfg.validate()?;
     let mut cfg = cfg.clone();
     cfg.resolve_stream_size()?;
@@ -359,12 +387,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let spec = cfg.source_spec()?;
     let mut source = Source::open(&spec, (settings.width, settings.height), 0)?;
     let mut observers = LocalObservers::open(cfg, opts, &views)?;
-    let pacing = match cfg.pace() {
-        Some(Pace::Recorded) => Pacing::Recorded,
-        // A camera blocks until its next frame: as fast as it delivers.
-        Some(Pace::Free | Pace::Source) => Pacing::Free,
-        None => Pacing::Rate(cfg.fps),
-    };
+    let pacing = pacing(cfg);
     let (cpu0, _) = self_usage();
     let t0 = Instant::now();
     let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
@@ -376,17 +399,10 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
         &mut observers.each(),
     )?;
     let elapsed = t0.elapsed().as_secs_f64();
-    let (cpu1, peak_rss_kb) = self_usage();
+    let usage = this_process(cpu0, elapsed);
     let got = observers.finish()?;
     let mut s = RunSummary::new(cfg, "in-process", &got, elapsed);
-    s.processes = vec![ProcessUsage {
-        stage: "in-process".into(),
-        cpu_s: cpu1 - cpu0,
-        cpu_pct: 100.0 * (cpu1 - cpu0) / elapsed.max(1e-9),
-        peak_rss_kb,
-        cpus: crate::summary::status_field(std::process::id(), "Cpus_allowed_list:")
-            .unwrap_or_default(),
-    }];
+    s.processes = vec![usage];
     s.stage_counters = std::iter::once(serde_json::json!({
         "stage": "capture",
         "sent": got.len(),
@@ -402,6 +418,139 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     .collect();
     if opts.samples {
         s.samples = Some(Samples::of(&got, false));
+    }
+    Ok(s)
+}
+
+/// How a run in this process paces its source.
+fn pacing(cfg: &PipelineConfig) -> Pacing {
+    match cfg.pace() {
+        Some(Pace::Recorded) => Pacing::Recorded,
+        // A camera blocks until its next frame: as fast as it delivers.
+        Some(Pace::Free | Pace::Source) => Pacing::Free,
+        None => Pacing::Rate(cfg.fps),
+    }
+}
+
+/// This process's CPU since `cpu0` seconds of it, over `elapsed`
+/// seconds, and its peak memory.
+fn this_process(cpu0: f64, elapsed: f64) -> ProcessUsage {
+    let (cpu1, peak_rss_kb) = self_usage();
+    ProcessUsage {
+        stage: "in-process".into(),
+        cpu_s: cpu1 - cpu0,
+        cpu_pct: 100.0 * (cpu1 - cpu0) / elapsed.max(1e-9),
+        peak_rss_kb,
+        cpus: crate::summary::status_field(std::process::id(), "Cpus_allowed_list:")
+            .unwrap_or_default(),
+    }
+}
+
+/// `path` for object `object` of several: `res.jsonl` becomes
+/// `res-<object>.jsonl`.
+pub fn per_object_path(path: &Path, object: &str) -> PathBuf {
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let name = match path.extension() {
+        Some(ext) => format!("{stem}-{object}.{}", ext.to_string_lossy()),
+        None => format!("{stem}-{object}"),
+    };
+    path.with_file_name(name)
+}
+
+/// Runs several objects' chains ([`MultiChain`]) in this process over the
+/// configured source: every result of object `o` on zenoh at
+/// `<prefix>/<o>/result` (and `.../seed`) over one session, and with
+/// `results` in a file per object ([`per_object_path`]).
+pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary, RunError> {
+    cfg.validate()?;
+    let mut cfg = cfg.clone();
+    cfg.resolve_stream_size()?;
+    let cfg = &cfg;
+    // Pinned to one CPU the objects' chains would take turns: "auto"
+    // leaves them every CPU (docs/multi.md).
+    if cfg.stage_cpus != "auto" {
+        cfg.pin_stage().map_err(|source| RunError::Sched {
+            what: format!("stage_cpus = {}", cfg.stage_cpus),
+            source,
+        })?;
+    }
+    let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
+    let dbs = cfg.object_databases()?;
+    let lanes = dbs
+        .iter()
+        .map(|db| Ok((db, cfg.object_settings(db)?)))
+        .collect::<Result<Vec<_>, ConfigError>>()?;
+    let (width, height) = lanes
+        .first()
+        .map_or((cfg.width, cfg.height), |(_, s)| (s.width, s.height));
+    let threads = match cfg.object_threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    };
+    let mut chain = MultiChain::build(&lanes, threads)?;
+    drop(lanes);
+    let names: Vec<String> = dbs.iter().map(|db| db.object.clone()).collect();
+    drop(dbs);
+    let mut source = Source::open(&cfg.source_spec()?, (width, height), 0)?;
+    let session = opts
+        .zenoh
+        .then(|| acch_ipc::open_session(&cfg.zenoh.listen, &cfg.zenoh.connect))
+        .transpose()
+        .map_err(IpcError::from)?;
+    let mut sinks = Vec::new();
+    let mut files = Vec::new();
+    for name in &names {
+        if let Some(session) = &session {
+            sinks.push(ZenohSink::on_session(session.clone(), cfg, name)?);
+        }
+        if let Some(path) = &opts.results {
+            files.push(JsonLines::create(&per_object_path(path, name), name)?);
+        }
+    }
+    let pacing = pacing(cfg);
+    let mut per_object: Vec<Vec<Seeded>> = vec![Vec::new(); names.len()];
+    let mut last_to_finish = Vec::with_capacity(cfg.frames as usize);
+    let (cpu0, _) = self_usage();
+    let t0 = Instant::now();
+    crate::chain::run_frames(&mut source, (cfg.frames, pacing), None, |frame, rgb| {
+        let outs = chain.process(frame, rgb);
+        for (o, out) in outs.iter().enumerate() {
+            if let Some(sink) = sinks.get_mut(o) {
+                sink.result(out)?;
+            }
+            if let Some(file) = files.get_mut(o) {
+                file.result(out)?;
+            }
+            per_object[o].push(*out);
+        }
+        if let Some(last) = outs
+            .iter()
+            .max_by_key(|m| m.envelope().trail.end_to_end_ns())
+        {
+            last_to_finish.push(*last);
+        }
+        Ok(())
+    })?;
+    let elapsed = t0.elapsed().as_secs_f64();
+    let usage = this_process(cpu0, elapsed);
+    for f in &mut files {
+        f.flush()?;
+    }
+    let mut s = RunSummary::new(cfg, "in-process", &last_to_finish, elapsed);
+    s.object = names.join(",");
+    s.processes = vec![usage];
+    s.objects = chain
+        .lanes()
+        .iter()
+        .zip(&per_object)
+        .map(|(lane, got)| ObjectOutcomes {
+            object: lane.object.clone(),
+            outcomes: Outcomes::of(got),
+            suppressed: lane.suppressed,
+        })
+        .collect();
+    if opts.samples {
+        s.samples = Some(Samples::of(&last_to_finish, false));
     }
     Ok(s)
 }
@@ -450,6 +599,9 @@ pub fn run_processes(
     cfg.instance = std::process::id().to_string();
     cfg.first_frame = 0;
     cfg.validate()?;
+    if !cfg.objects.is_empty() {
+        return Err(RunError::SeveralObjects(cfg.objects.join(", ")));
+    }
     // A camera's size is learnt once, here; every process reads it.
     cfg.resolve_stream_size()?;
     // The stages' wake-up files go with the run, however it ends.

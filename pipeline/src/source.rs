@@ -79,6 +79,9 @@ pub enum SourceError {
     /// A recording could not be read.
     #[error(transparent)]
     Record(#[from] acch_record::RecordError),
+    /// The scene of several objects could not be laid out.
+    #[error(transparent)]
+    Group(#[from] acch_capture::MultiSceneError),
 }
 
 /// The simulated camera: an object on a table, seen by an eye-in-hand
@@ -122,6 +125,50 @@ impl SyntheticCamera {
     }
 }
 
+/// The simulated camera over several known objects standing together on
+/// a table ([`acch_capture::MultiRenderer`]): it circles the group at 20°
+/// a second while its elevation swings through the band every 12 s. Its
+/// frames carry no ground truth (a frame holds several objects).
+#[derive(Clone, Debug)]
+pub struct SyntheticGroup {
+    /// The objects in view.
+    pub objects: Vec<Arc<Object>>,
+    /// The table.
+    pub background: Background,
+    /// Which instance of the table's texture.
+    pub textures: acch_capture::TextureSet,
+    /// Seed of the layout and of the sensor noise.
+    pub seed: u64,
+    /// Frame width, pixels.
+    pub width: u32,
+    /// Frame height, pixels.
+    pub height: u32,
+    /// Frame rate the motion is sampled at.
+    pub fps: f64,
+    /// Elevation band the camera swings through, degrees.
+    pub elevation_deg: (f64, f64),
+}
+
+impl SyntheticGroup {
+    /// Azimuth speed, degrees a second.
+    const TURN_DEG_PER_S: f64 = 20.0;
+    /// Period of the elevation swing, seconds.
+    const SWING_S: f64 = 12.0;
+
+    /// The camera of frame `sequence`.
+    fn camera(&self, sequence: u64) -> Result<ViewPose, SourceError> {
+        let fps = if self.fps > 0.0 { self.fps } else { 30.0 };
+        let t = sequence as f64 / fps;
+        let (lo, hi) = self.elevation_deg;
+        let swing = 0.5 - 0.5 * (std::f64::consts::TAU * t / Self::SWING_S).cos();
+        Ok(ViewPose::new(
+            lo + (hi - lo) * swing,
+            Self::TURN_DEG_PER_S * t,
+            acch_capture::MULTI_DISTANCE,
+        )?)
+    }
+}
+
 /// The ground truth of a rendered frame and where the simulated arm put
 /// the camera (the object frame is the world frame), in metres: the
 /// renderer works in object bounding radii, of `radius_m` metres each.
@@ -159,6 +206,8 @@ pub fn sized_intrinsics(width: u32, height: u32) -> acch_capture::Intrinsics {
 pub enum SourceSpec {
     /// The simulated camera.
     Synthetic(SyntheticCamera),
+    /// The simulated camera over several objects.
+    Group(SyntheticGroup),
     /// PNG and JPEG images of a folder, in name order (or in the order of
     /// its labels.csv, which also gives their ground truth), cycled.
     Folder {
@@ -256,6 +305,7 @@ impl SourceSpec {
     pub fn frame_size(&self) -> Result<(u32, u32), SourceError> {
         match self {
             SourceSpec::Synthetic(c) => Ok((c.width, c.height)),
+            SourceSpec::Group(g) => Ok((g.width, g.height)),
             SourceSpec::Folder { dir, .. } => {
                 let first = list_images(dir)?;
                 let p = first
@@ -311,6 +361,15 @@ impl SourceSpec {
                 "simulated camera over {} on background {}",
                 c.object.name(),
                 c.background
+            ),
+            SourceSpec::Group(g) => format!(
+                "simulated camera over {} on background {}",
+                g.objects
+                    .iter()
+                    .map(|o| o.name())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                g.background
             ),
             SourceSpec::Folder { dir, .. } => format!("folder {}", dir.display()),
             SourceSpec::Mcap(p) => format!("recording {}", p.display()),
@@ -388,6 +447,11 @@ enum Kind {
         /// The object's real bounding radius: the renderer's unit, metres.
         radius_m: f64,
     },
+    Group {
+        renderer: Box<acch_capture::MultiRenderer>,
+        group: Box<SyntheticGroup>,
+        intrinsics: Intrinsics,
+    },
     Folder {
         dir: PathBuf,
         files: Vec<(PathBuf, Option<acch_capture::labels::LabelRow>)>,
@@ -459,6 +523,16 @@ impl Source {
                     intrinsics: Intrinsics::from(&c.intrinsics()),
                     seed: c.seed,
                     radius_m,
+                }
+            }
+            SourceSpec::Group(g) => {
+                let mut scene = acch_capture::MultiScene::new(g.objects.clone(), g.background);
+                scene.intrinsics = sized_intrinsics(g.width, g.height);
+                scene.textures = g.textures;
+                Kind::Group {
+                    renderer: Box::new(acch_capture::MultiRenderer::new(scene, g.seed)?),
+                    intrinsics: Intrinsics::from(&sized_intrinsics(g.width, g.height)),
+                    group: Box::new(g.clone()),
                 }
             }
             SourceSpec::Folder { dir, calibration } => {
@@ -602,7 +676,7 @@ impl Source {
     fn name_of(&self, p: &Produced) -> String {
         let seq = p.header.envelope.frame.sequence;
         match &self.kind {
-            Kind::Synthetic { .. } => format!("synthetic frame {seq}"),
+            Kind::Synthetic { .. } | Kind::Group { .. } => format!("synthetic frame {seq}"),
             Kind::Folder { files, .. } => files[self.position(files.len())].0.display().to_string(),
             Kind::Mcap { path, .. } => format!("frame {seq} of {}", path.display()),
             #[cfg(feature = "gstreamer")]
@@ -644,6 +718,23 @@ impl Source {
                 Ok(Some(Produced {
                     header,
                     pixels: Pixels::Rendered(buffer),
+                    recorded_ns: None,
+                    captured_ns: None,
+                    taken_ns: 0,
+                }))
+            }
+            Kind::Group {
+                renderer,
+                group,
+                intrinsics,
+            } => {
+                let camera = group.camera(sequence)?;
+                let seed = acch_capture::frame_seed(group.seed, sequence as usize);
+                let image = renderer.render_image(&camera, seed);
+                let (w, h) = image.dimensions();
+                Ok(Some(Produced {
+                    header: FrameHeader::rgb(sequence, w, h, *intrinsics),
+                    pixels: Pixels::Owned(image.into_raw()),
                     recorded_ns: None,
                     captured_ns: None,
                     taken_ns: 0,

@@ -6,6 +6,7 @@
 
 use super::common::ObjectArgs;
 use acch_capture::Background;
+use acch_pipeline::config::ObjectEntry;
 use acch_pipeline::{PipelineConfig, RunOptions, RunSummary, StageId};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -22,6 +23,17 @@ pub struct RunArgs {
     /// and cached (see --cache-dir).
     #[arg(long, value_name = "FILE.acchdb")]
     pub(crate) db: Option<PathBuf>,
+    /// Several known objects at once, comma-separated: built-in names,
+    /// generated-N, random:N (N generated objects of the population of
+    /// --seed), mesh files and view databases (.acchdb). Every object is
+    /// recognised in every frame, and its results and seeds published at
+    /// acch/<object>/result and .../seed. Needs --in-process.
+    #[arg(long, value_name = "LIST", conflicts_with_all = ["db", "object", "mesh"])]
+    pub(crate) objects: Option<String>,
+    /// With --objects: how many of them the simulated scene shows, the
+    /// first ones (default: all).
+    #[arg(long, value_name = "N", requires = "objects")]
+    pub(crate) objects_in_view: Option<usize>,
     /// Where trained default databases are cached.
     #[arg(long, env = "ACCH_CACHE_DIR", value_name = "DIR")]
     pub(crate) cache_dir: Option<PathBuf>,
@@ -205,7 +217,26 @@ impl RunArgs {
                 .name()
                 .to_owned();
         }
+        if let Some(list) = &self.objects {
+            cfg.objects = expand_objects(list, cfg.seed)?;
+            cfg.object_dbs.clear();
+        }
+        if let Some(n) = self.objects_in_view {
+            cfg.objects_in_view = n;
+        }
         cfg.validate().context("invalid pipeline configuration")?;
+        if !cfg.objects.is_empty() {
+            if !self.in_process {
+                bail!(
+                    "--objects: several objects run in one process only: add --in-process \
+                     (the stage processes carry one object)"
+                );
+            }
+            if cfg.object_dbs.is_empty() {
+                cfg.object_dbs = self.object_databases(&cfg)?;
+            }
+            return Ok(cfg);
+        }
         if cfg.db.is_none() {
             let object = std::sync::Arc::new(cfg.scene_object()?);
             let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
@@ -214,6 +245,49 @@ impl RunArgs {
         }
         Ok(cfg)
     }
+}
+
+impl RunArgs {
+    /// The database of every entry of `objects`: a database file as it
+    /// is, the cached default of a built-in object or a mesh (trained on
+    /// first use).
+    fn object_databases(&self, cfg: &PipelineConfig) -> Result<Vec<PathBuf>> {
+        let up = cfg.mesh_up.parse()?;
+        let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
+        cfg.object_entries()
+            .into_iter()
+            .map(|entry| match entry {
+                ObjectEntry::Database(path) => Ok(path),
+                other => {
+                    let object = std::sync::Arc::new(other.object(up, cfg.mesh_unit_m)?);
+                    Ok(acch_eval::train::cached_database(&object, cache.clone())?.1)
+                }
+            })
+            .collect()
+    }
+}
+
+/// `--objects LIST` as configuration entries: `random:N` becomes the
+/// names of N generated objects of the population of `seed`.
+fn expand_objects(list: &str, seed: u64) -> Result<Vec<String>> {
+    let mut out = Vec::new();
+    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match item.strip_prefix("random:") {
+            Some(n) => {
+                let n: usize = n
+                    .parse()
+                    .ok()
+                    .filter(|&n| (1..=acch_capture::MAX_SCENE_OBJECTS).contains(&n))
+                    .with_context(|| format!("--objects {item}: N must be a number in 1..=16"))?;
+                out.extend(acch_capture::population(seed, n));
+            }
+            None => out.push(item.to_owned()),
+        }
+    }
+    if out.is_empty() {
+        bail!("--objects '{list}' names no object");
+    }
+    Ok(out)
 }
 
 /// Parses `MIN,MAX` degrees (checked with the rest of the configuration).
@@ -253,10 +327,12 @@ pub fn run(args: RunArgs) -> Result<()> {
         );
     }
     let summary = if args.in_process {
-        eprintln!(
-            "acch run: {} frames of {} in one process",
-            cfg.frames, cfg.object
-        );
+        let what = if cfg.objects.is_empty() {
+            cfg.object.clone()
+        } else {
+            cfg.objects.join(", ")
+        };
+        eprintln!("acch run: {} frames of {what} in one process", cfg.frames);
         acch_pipeline::run_in_process(&cfg, &opts)?
     } else {
         let exe = std::env::current_exe().context("locating the acch executable")?;
@@ -308,6 +384,13 @@ fn print_summary(s: &RunSummary) {
         println!(
             "faults: {} frames a stage could not process (see stage_counters)",
             o.faulted
+        );
+    }
+    for object in &s.objects {
+        let o = &object.outcomes;
+        println!(
+            "  {}: found {}, estimated {}, accepted {}, rejected {}, withdrawn for another object {}",
+            object.object, o.found, o.estimated, o.accepted, o.rejected, object.suppressed
         );
     }
     if !s.restarts.is_empty() || s.dropped > 0 {

@@ -102,3 +102,32 @@ pub fn ok(out: &Output) -> String {
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
+
+/// The report lines of an independent zenoh subscriber
+/// (tests/pipeline_subscriber.py, Python `eclipse-zenoh`).
+pub type Reports = std::io::Lines<std::io::BufReader<std::process::ChildStdout>>;
+
+/// Starts tests/pipeline_subscriber.py listening on loopback `port` for
+/// `frames` results of `object` (at most 240 s), and waits until it is
+/// ready; the pipeline then connects to it. Its report is the next line.
+pub fn zenoh_subscriber(object: &str, port: u16, frames: u64) -> (Guard, Reports) {
+    use std::io::BufRead;
+    let mut sub = Guard(
+        Command::new("python3")
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/pipeline_subscriber.py"
+            ))
+            .arg(format!("tcp/127.0.0.1:{port}"))
+            .arg(object)
+            .arg(frames.to_string())
+            .arg("240")
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let mut lines = std::io::BufReader::new(sub.0.stdout.take().unwrap()).lines();
+    let ready = lines.next().unwrap().unwrap();
+    assert!(ready.contains("ready"), "{ready}");
+    (sub, lines)
+}

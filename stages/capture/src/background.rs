@@ -284,7 +284,7 @@ pub(crate) struct Placed {
     pub world_from_object: DAffine3,
 }
 
-fn hsv(h: f32, s: f32, v: f32) -> [u8; 3] {
+pub(crate) fn hsv(h: f32, s: f32, v: f32) -> [u8; 3] {
     let h6 = (h.rem_euclid(1.0)) * 6.0;
     let c = v * s;
     let x = c * (1.0 - ((h6 % 2.0) - 1.0).abs());
@@ -339,7 +339,7 @@ fn random_pattern(rng: &mut ChaCha8Rng, w: u32, h: u32, palette: &[[u8; 3]]) -> 
 
 /// Builds one distractor standing on z = 0 around the z axis and returns it
 /// with its footprint radius.
-fn distractor(
+pub(crate) fn distractor(
     rng: &mut ChaCha8Rng,
     palette: &[[u8; 3]],
     height_limit: f32,

@@ -42,6 +42,7 @@ mod error;
 mod generated;
 pub mod labels;
 mod mesh;
+mod multi;
 mod noise;
 mod object;
 mod paint;
@@ -57,6 +58,10 @@ pub use camera::{DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance};
 pub use effects::Effects;
 pub use error::CaptureError;
 pub use generated::{GENERATED_PREFIX, GENERATOR_REVISION, generated_seed, population};
+pub use multi::{
+    MAX_SCENE_OBJECTS, MULTI_DISTANCE, MultiRendered, MultiRenderer, MultiScene, MultiSceneError,
+    ObjectTruth, SceneLight, view_from,
+};
 pub use object::{BUILTIN_OBJECTS, ModelInfo, Object, UpAxis};
 pub use render::{BBox, GroundTruth, Rendered, Renderer, SceneConfig, mask_bbox};
 pub use trajectory::{Frames, Trajectory, TrajectoryFrame};

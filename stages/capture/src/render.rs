@@ -146,14 +146,7 @@ impl Renderer {
     /// backgrounds without clutter). Invalid effect values (negative or
     /// non-finite) are treated as "no effect".
     pub fn new(config: SceneConfig, scene_seed: u64) -> Self {
-        let table = match config.background {
-            Background::Plain(_) => None,
-            Background::A => Some(TableKind::Wood),
-            Background::B => Some(TableKind::Fabric),
-            Background::C => Some(TableKind::Felt),
-            Background::Clutter | Background::ClutterSimilar => Some(TableKind::Laminate),
-        }
-        .map(|kind| table_texture(kind, config.textures));
+        let table = table_of(config.background, config.textures);
         let distractors = match config.background {
             Background::Clutter => clutter_layout(&config.object, false, scene_seed),
             Background::ClutterSimilar => clutter_layout(&config.object, true, scene_seed),
@@ -270,6 +263,19 @@ impl Renderer {
             bbox: mask_bbox(&out.mask),
         };
     }
+}
+
+/// The table texture of `background` (none for a plain colour), from the
+/// textures of `set`.
+pub(crate) fn table_of(background: Background, set: TextureSet) -> Option<Arc<Texture>> {
+    match background {
+        Background::Plain(_) => None,
+        Background::A => Some(TableKind::Wood),
+        Background::B => Some(TableKind::Fabric),
+        Background::C => Some(TableKind::Felt),
+        Background::Clutter | Background::ClutterSimilar => Some(TableKind::Laminate),
+    }
+    .map(|kind| table_texture(kind, set))
 }
 
 /// Grey of the occluding bar (a gripper finger's anodised aluminium).

@@ -1,0 +1,229 @@
+//! Several known objects in one frame: one lane (a [`Chain`] over the
+//! object's database) per object. Every lane recognises its object in the
+//! frame; where two objects' windows cover the same place, only the one
+//! that cleared its threshold by the wider margin goes on (non-maximum
+//! suppression between objects); then segmentation, pose, confidence and
+//! seeding run per detection.
+
+use crate::chain::Chain;
+use crate::frame::FrameHeader;
+use crate::stages::{BuildError, Recognised, Seeded, StageSettings, Window};
+use crate::wire::{Outcome, PixelRect};
+use acch_core::ViewDatabase;
+use std::sync::Mutex;
+
+/// Windows of two objects overlapping by more than this share of the
+/// smaller one claim the same place: the weaker is withdrawn. Of the
+/// smaller, not of the union: objects' windows differ in size, and a small
+/// window inside a large one on the same object overlaps it little by
+/// union (docs/multi.md).
+pub const NMS_OVERLAP: f32 = 0.5;
+
+/// One object's chain in a [`MultiChain`].
+pub struct Lane {
+    /// The object's name (its database's).
+    pub object: String,
+    /// Its stages.
+    pub chain: Chain,
+    /// Frames whose detection was withdrawn for another object's.
+    pub suppressed: u64,
+    recognised: Recognised,
+}
+
+/// The chains of several objects over one stream of frames.
+pub struct MultiChain {
+    lanes: Vec<Lane>,
+    seeded: Vec<Seeded>,
+    threads: usize,
+}
+
+impl MultiChain {
+    /// A lane per database, each with its own settings, run on up to
+    /// `threads` threads per frame (1: all on the caller's).
+    pub fn build(
+        objects: &[(&ViewDatabase, StageSettings)],
+        threads: usize,
+    ) -> Result<Self, BuildError> {
+        let lanes = objects
+            .iter()
+            .map(|(db, settings)| {
+                Ok(Lane {
+                    object: db.object.clone(),
+                    chain: Chain::build(db, settings)?,
+                    suppressed: 0,
+                    recognised: Recognised::default(),
+                })
+            })
+            .collect::<Result<Vec<_>, BuildError>>()?;
+        Ok(MultiChain {
+            seeded: vec![Seeded::default(); lanes.len()],
+            lanes,
+            threads: threads.max(1),
+        })
+    }
+
+    /// The lanes, in the order they were built.
+    pub fn lanes(&self) -> &[Lane] {
+        &self.lanes
+    }
+
+    /// The lanes, to change (a confidence threshold, say).
+    pub fn lanes_mut(&mut self) -> &mut [Lane] {
+        &mut self.lanes
+    }
+
+    /// Runs every lane on frame `frame` (packed RGB `rgb`) and returns each
+    /// lane's result, in lane order.
+    pub fn process(&mut self, frame: &FrameHeader, rgb: &[u8]) -> &[Seeded] {
+        self.each_lane(|lane| lane.recognised = lane.chain.recognise(frame, rgb));
+        let windows: Vec<Option<Window>> = self
+            .lanes
+            .iter()
+            .map(|l| match l.recognised.detection {
+                Outcome::Done(w) => Some(w),
+                _ => None,
+            })
+            .collect();
+        for (lane, keep) in self.lanes.iter_mut().zip(suppress(&windows)) {
+            if !keep {
+                lane.recognised.detection = Outcome::Nothing;
+                lane.suppressed += 1;
+            }
+        }
+        self.each_lane(|lane| {
+            let r = lane.recognised;
+            let _ = lane.chain.finish(&r);
+        });
+        for (out, lane) in self.seeded.iter_mut().zip(&self.lanes) {
+            *out = lane.chain.last().expect("every lane just ran");
+        }
+        &self.seeded
+    }
+
+    /// Runs `work` on every lane, spread over the chain's threads: each
+    /// thread takes the next lane not yet taken, so a slow lane does not
+    /// hold up a whole share.
+    fn each_lane(&mut self, work: impl Fn(&mut Lane) + Sync) {
+        let threads = self.threads.min(self.lanes.len());
+        if threads <= 1 {
+            self.lanes.iter_mut().for_each(work);
+            return;
+        }
+        let next = Mutex::new(self.lanes.iter_mut());
+        let take = || next.lock().unwrap_or_else(|e| e.into_inner()).next();
+        std::thread::scope(|s| {
+            for _ in 1..threads {
+                s.spawn(|| {
+                    while let Some(lane) = take() {
+                        work(lane);
+                    }
+                });
+            }
+            while let Some(lane) = take() {
+                work(lane);
+            }
+        });
+    }
+}
+
+/// Which of `windows` survive non-maximum suppression: the strongest by
+/// margin over its own threshold (score / threshold, comparable between
+/// objects whose models score on different scales) first, each later one
+/// kept only if it overlaps no kept window by more than [`NMS_OVERLAP`].
+pub fn suppress(windows: &[Option<Window>]) -> Vec<bool> {
+    let margin = |w: &Window| w.score / w.threshold.max(f32::MIN_POSITIVE);
+    let mut order: Vec<usize> = (0..windows.len())
+        .filter(|&i| windows[i].is_some())
+        .collect();
+    order.sort_by(|&a, &b| {
+        let (wa, wb) = (windows[a].as_ref(), windows[b].as_ref());
+        margin(wb.expect("filtered")).total_cmp(&margin(wa.expect("filtered")))
+    });
+    let mut keep = vec![false; windows.len()];
+    let mut kept: Vec<PixelRect> = Vec::new();
+    for i in order {
+        let w = windows[i].expect("filtered").window;
+        if kept.iter().all(|k| overlap(k, &w) <= NMS_OVERLAP) {
+            keep[i] = true;
+            kept.push(w);
+        }
+    }
+    keep
+}
+
+/// The intersection of two pixel rectangles over the smaller's area (0
+/// when either is empty).
+pub fn overlap(a: &PixelRect, b: &PixelRect) -> f32 {
+    let ix = (a.x + a.width)
+        .min(b.x + b.width)
+        .saturating_sub(a.x.max(b.x));
+    let iy = (a.y + a.height)
+        .min(b.y + b.height)
+        .saturating_sub(a.y.max(b.y));
+    let inter = ix as f64 * iy as f64;
+    let smaller = (a.width as f64 * a.height as f64).min(b.width as f64 * b.height as f64);
+    if smaller <= 0.0 {
+        return 0.0;
+    }
+    (inter / smaller) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn window(x: u32, y: u32, side: u32, score: f32, threshold: f32) -> Option<Window> {
+        Some(Window {
+            window: PixelRect {
+                x,
+                y,
+                width: side,
+                height: side,
+            },
+            score,
+            threshold,
+            ..Window::default()
+        })
+    }
+
+    #[test]
+    fn overlap_is_over_the_smaller_rectangle() {
+        let a = PixelRect {
+            x: 0,
+            y: 0,
+            width: 10,
+            height: 10,
+        };
+        let b = PixelRect { x: 5, ..a };
+        assert!((overlap(&a, &a) - 1.0).abs() < 1e-6);
+        assert!((overlap(&a, &b) - 0.5).abs() < 1e-6);
+        // A small window inside a large one: wholly overlapped.
+        let inside = PixelRect {
+            x: 2,
+            y: 2,
+            width: 4,
+            height: 4,
+        };
+        assert!((overlap(&a, &inside) - 1.0).abs() < 1e-6);
+        assert_eq!(overlap(&a, &PixelRect { x: 20, ..a }), 0.0);
+        assert_eq!(overlap(&a, &PixelRect { width: 0, ..b }), 0.0);
+    }
+
+    #[test]
+    fn the_wider_margin_wins_an_overlap_and_apart_both_stay() {
+        // Lane 1 scores lower but clears a lower threshold by more.
+        let w = [
+            window(100, 100, 80, 0.6, 0.5),
+            window(105, 100, 80, 0.5, 0.3),
+            None,
+            window(400, 100, 80, 0.4, 0.3),
+        ];
+        assert_eq!(suppress(&w), [false, true, false, true]);
+        // Overlapping less than NMS_OVERLAP, both stay.
+        let apart = [
+            window(100, 100, 80, 0.6, 0.5),
+            window(150, 100, 80, 0.5, 0.3),
+        ];
+        assert_eq!(suppress(&apart), [true, true]);
+    }
+}

@@ -1,0 +1,121 @@
+//! `acch run --in-process --objects fruitbox,can`: one pipeline over a
+//! simulated table holding both; an independent subscriber per object
+//! (Python `eclipse-zenoh`, tests/pipeline_subscriber.py) receives every
+//! frame's result on that object's own key and checks each verdict; the
+//! results file is split per object; an object not in view is not
+//! reported found in most frames; the stage processes refuse several
+//! objects, saying how to run them.
+
+mod common;
+
+use common::{acch, free_port, ok, zenoh_subscriber};
+use serde_json::Value;
+
+fn rows(path: &std::path::Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn each_object_is_published_on_its_own_key_with_its_own_results() {
+    let frames = 40u64;
+    let dir = tempfile::tempdir().unwrap();
+    let (p_fruitbox, p_can, p_run) = (free_port(), free_port(), free_port());
+    let (_s1, mut fruitbox_report) = zenoh_subscriber("fruitbox", p_fruitbox, frames);
+    let (_s2, mut can_report) = zenoh_subscriber("can", p_can, frames);
+    let config = dir.path().join("p.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[zenoh]\nlisten = [\"tcp/127.0.0.1:{p_run}\"]\nconnect = [\"tcp/127.0.0.1:{p_fruitbox}\", \"tcp/127.0.0.1:{p_can}\"]\n"
+        ),
+    )
+    .unwrap();
+    let (results, json) = (dir.path().join("r.jsonl"), dir.path().join("s.json"));
+    let run = [
+        "run",
+        "--in-process",
+        "--objects",
+        "fruitbox,can,tricolor",
+        // The scene shows the first two; tricolor is known, not in view.
+        "--objects-in-view",
+        "2",
+        "--frames",
+        &frames.to_string(),
+        "--fps",
+        "15",
+        "--config",
+        config.to_str().unwrap(),
+        "--results",
+        results.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ];
+    ok(&acch(&run, dir.path()));
+    let summary: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let objects = summary["objects"].as_array().expect("per-object outcomes");
+    assert_eq!(objects.len(), 3, "{summary}");
+    let found = |name: &str| {
+        objects
+            .iter()
+            .find(|o| o["object"] == name)
+            .unwrap_or_else(|| panic!("no {name} in {summary}"))["found"]
+            .as_u64()
+            .unwrap()
+    };
+    eprintln!(
+        "found: fruitbox {}, can {}, tricolor {}",
+        found("fruitbox"),
+        found("can"),
+        found("tricolor")
+    );
+    assert!(found("fruitbox") >= frames * 3 / 4, "{summary}");
+    assert!(found("can") >= frames * 3 / 4, "{summary}");
+    assert!(found("tricolor") <= frames / 4, "{summary}");
+    assert_eq!(summary["dropped"], 0, "{summary}");
+    for (name, report) in [("fruitbox", &mut fruitbox_report), ("can", &mut can_report)] {
+        let file = rows(&dir.path().join(format!("r-{name}.jsonl")));
+        assert_eq!(file.len() as u64, frames, "{name}");
+        assert!(
+            file.iter().all(|r| r["object"] == name),
+            "{name}: {}",
+            file[0]
+        );
+        let r: Value = serde_json::from_str(&report.next().unwrap().unwrap()).unwrap();
+        eprintln!("{name} subscriber: {r}");
+        assert_eq!(r["results"], frames, "{name}: {r}");
+        assert_eq!(r["bad_verdicts"], serde_json::json!([]), "{name}: {r}");
+        assert_eq!(
+            r["seeds_without_acceptance"],
+            serde_json::json!([]),
+            "{name}: {r}"
+        );
+        let accepted = file.iter().filter(|r| r["accepted"] == true).count() as u64;
+        assert_eq!(r["seeds"].as_u64().unwrap(), accepted, "{name}: {r}");
+    }
+    assert!(!results.exists(), "one file per object, none for all");
+}
+
+#[test]
+fn the_stage_processes_refuse_several_objects_and_say_how() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = common::loopback_config(dir.path());
+    let args = [
+        "run",
+        "--objects",
+        "fruitbox,can",
+        "--frames",
+        "5",
+        "--config",
+    ];
+    let out = acch(
+        &[&args[..], &[config.to_str().unwrap()]].concat(),
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--in-process"), "{err}");
+}
