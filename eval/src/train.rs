@@ -784,7 +784,56 @@ pub fn cached_database_with(
     dir: Option<PathBuf>,
     imaging: bool,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let path = cached_database_path(object, dir, imaging);
+    let scenes = ConfidenceScenes {
+        imaging,
+        ..ConfidenceScenes::default()
+    };
+    let what = if imaging { "imaging-aware " } else { "" };
+    cached(
+        object,
+        cached_database_path(object, dir, imaging),
+        what,
+        scenes,
+    )
+}
+
+/// The default recipe for `object` with its confidence network trained on
+/// scenes rolled within ±`search_deg` and estimated with that roll search
+/// (which runs then use): for a camera that rolls, or for objects seen off
+/// the optical axis (several objects on a table). Cached beside the
+/// default one.
+pub fn cached_roll_database(
+    object: &Arc<Object>,
+    dir: Option<PathBuf>,
+    search_deg: f64,
+) -> Result<(ViewDatabase, PathBuf), EvalError> {
+    if !(search_deg.is_finite() && (0.0..=180.0).contains(&search_deg)) {
+        return Err(EvalError::Input(format!(
+            "--roll-search-deg {search_deg} must be a finite number of degrees in [0, 180]"
+        )));
+    }
+    if search_deg == 0.0 {
+        return cached_database(object, dir);
+    }
+    let default = cached_database_path(object, dir, false);
+    let stem = default.file_stem().unwrap_or_default().to_string_lossy();
+    let path = default.with_file_name(format!("{stem}-roll{search_deg}.acchdb"));
+    let scenes = ConfidenceScenes {
+        roll_deg: search_deg,
+        search_deg,
+        imaging: false,
+    };
+    cached(object, path, "roll-searching ", scenes)
+}
+
+/// The database of `object` cached at `path`, or trained with the default
+/// recipe and confidence `scenes` on first use and cached there.
+fn cached(
+    object: &Arc<Object>,
+    path: PathBuf,
+    what: &str,
+    scenes: ConfidenceScenes,
+) -> Result<(ViewDatabase, PathBuf), EvalError> {
     let dir = path.parent().map(PathBuf::from).unwrap_or_default();
     if path.exists() {
         match ViewDatabase::load(&path) {
@@ -793,17 +842,13 @@ pub fn cached_database_with(
         }
     }
     eprintln!(
-        "acch: training the {}database of '{}' (first use; cached in {})",
-        if imaging { "imaging-aware " } else { "" },
+        "acch: training the {what}database of '{}' (first use; cached in {})",
         object.name(),
         path.display()
     );
     let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
     let training = RenderedTraining {
-        scenes: ConfidenceScenes {
-            imaging,
-            ..ConfidenceScenes::default()
-        },
+        scenes,
         ..RenderedTraining::default()
     };
     let (db, choice) = train_object(object, &TrainConfig::default(), &training, confidence)?;
@@ -816,32 +861,6 @@ pub fn cached_database_with(
     })?;
     db.save(&path)?;
     Ok((db, path))
-}
-
-/// The default recipe for `object`, its confidence network trained on
-/// scenes rolled within ±`search_deg` and estimated with that roll search
-/// (which runs then use): for a camera that rolls, or objects seen off the
-/// optical axis. Trained afresh, not cached.
-pub fn trained_for_roll(object: &Arc<Object>, search_deg: f64) -> Result<ViewDatabase, EvalError> {
-    if !(search_deg.is_finite() && (0.0..=180.0).contains(&search_deg)) {
-        return Err(EvalError::Input(format!(
-            "--roll-search-deg {search_deg} must be a finite number of degrees in [0, 180]"
-        )));
-    }
-    eprintln!(
-        "acch: training the database of '{}' for a roll search of ±{search_deg}°",
-        object.name()
-    );
-    let training = RenderedTraining {
-        scenes: ConfidenceScenes {
-            roll_deg: search_deg,
-            search_deg,
-            imaging: false,
-        },
-        ..RenderedTraining::default()
-    };
-    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
-    Ok(train_object(object, &TrainConfig::default(), &training, confidence)?.0)
 }
 
 #[cfg(test)]

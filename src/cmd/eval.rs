@@ -95,8 +95,9 @@ pub struct EvalArgs {
     roll_deg: Option<f64>,
     /// The largest roll the pose stage searches, degrees: table1 (default
     /// 0: none); roll: the search the database is trained with (default
-    /// 45); multi: databases trained for this search instead of the
-    /// cached defaults (objects off the optical axis are seen rolled);
+    /// 45); multi: the search the databases are trained for (default 45:
+    /// objects off the optical axis are seen rolled; 0: the default
+    /// databases);
     /// --bop, --labels (default: what the database was trained with).
     #[arg(long, value_name = "DEG")]
     roll_search_deg: Option<f64>,
@@ -343,9 +344,11 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
     options.check(objects.len())?;
     let databases = objects
         .iter()
-        .map(|o| match args.roll_search_deg {
-            Some(deg) => acch_eval::train::trained_for_roll(o, deg),
-            None => acch_eval::train::cached_database(o, None).map(|(db, _)| db),
+        .map(|o| {
+            let deg = args
+                .roll_search_deg
+                .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG);
+            acch_eval::train::cached_roll_database(o, None, deg).map(|(db, _)| db)
         })
         .collect::<Result<Vec<_>, _>>()?;
     let report = multi::multi(objects, &databases, &options)?;

@@ -27,7 +27,9 @@ pub struct RunArgs {
     /// generated-N, random:N (N generated objects of the population of
     /// --seed), mesh files and view databases (.acchdb). Every object is
     /// recognised in every frame, and its results and seeds published at
-    /// acch/<object>/result and .../seed. Needs --in-process.
+    /// acch/<object>/result and .../seed. A named object's database is
+    /// trained (first use, cached) to search the roll within ±45°: objects
+    /// off the optical axis are seen rolled. Needs --in-process.
     #[arg(long, value_name = "LIST", conflicts_with_all = ["db", "object", "mesh"])]
     pub(crate) objects: Option<String>,
     /// With --objects: how many of them the simulated scene shows, the
@@ -249,8 +251,8 @@ impl RunArgs {
 
 impl RunArgs {
     /// The database of every entry of `objects`: a database file as it
-    /// is, the cached default of a built-in object or a mesh (trained on
-    /// first use).
+    /// is; for a built-in object or a mesh the cached one trained for the
+    /// roll search objects off the optical axis need (on first use).
     fn object_databases(&self, cfg: &PipelineConfig) -> Result<Vec<PathBuf>> {
         let up = cfg.mesh_up.parse()?;
         let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
@@ -260,7 +262,8 @@ impl RunArgs {
                 ObjectEntry::Database(path) => Ok(path),
                 other => {
                     let object = std::sync::Arc::new(other.object(up, cfg.mesh_unit_m)?);
-                    Ok(acch_eval::train::cached_database(&object, cache.clone())?.1)
+                    let deg = acch_eval::multi::OFF_AXIS_ROLL_SEARCH_DEG;
+                    Ok(acch_eval::train::cached_roll_database(&object, cache.clone(), deg)?.1)
                 }
             })
             .collect()
