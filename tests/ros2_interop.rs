@@ -444,3 +444,58 @@ fn the_arm_pose_comes_from_a_ros2_topic() {
         results.len()
     );
 }
+
+#[test]
+fn several_objects_publish_their_seeds_from_nodes_of_their_own() {
+    require_python();
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let config = dir.path().join("pipeline.toml");
+    std::fs::write(
+        &config,
+        format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n[ros2]\nenabled = true\n"),
+    )
+    .unwrap();
+    let report_path = dir.path().join("report.json");
+    let check = checker(
+        port,
+        &[
+            "--min-samples",
+            "5",
+            "--expect-topic",
+            &format!("/acch/fruitbox/seed:{PWCS}"),
+            "--expect-topic",
+            &format!("/acch/can/seed:{PWCS}"),
+            "--expect-topic",
+            "/acch/camera_info:sensor_msgs/msg/CameraInfo",
+        ],
+        &report_path,
+    );
+    acch_run(
+        &config,
+        &[
+            "--in-process",
+            "--objects",
+            "fruitbox,can",
+            "--frames",
+            "60",
+        ],
+    );
+    let report = checked(check, &report_path);
+    let node_tokens = tokens(&report, "NN");
+    let nodes: Vec<&str> = node_tokens
+        .iter()
+        .filter_map(|t| t["node"].as_str())
+        .collect();
+    for node in ["acch_fruitbox", "acch_can"] {
+        assert!(nodes.contains(&node), "no node {node}: {nodes:?}");
+    }
+    // The camera's info comes from one node only, not once per object.
+    let publishers = tokens(&report, "MP");
+    let info: Vec<&&Value> = publishers
+        .iter()
+        .filter(|t| t["topic_demangled"] == "/acch/camera_info")
+        .collect();
+    assert_eq!(info.len(), 1, "{info:?}");
+}

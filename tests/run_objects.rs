@@ -76,6 +76,17 @@ fn each_object_is_published_on_its_own_key_with_its_own_results() {
     assert!(found("can") >= frames * 3 / 4, "{summary}");
     assert!(found("tricolor") <= frames / 4, "{summary}");
     assert_eq!(summary["dropped"], 0, "{summary}");
+    // Capture's counters, then every object's five stages', each counting
+    // every frame.
+    let counters = summary["stage_counters"].as_array().unwrap();
+    assert_eq!(counters.len(), 1 + 3 * 5, "{summary}");
+    for name in ["fruitbox", "can", "tricolor"] {
+        let recognition = counters
+            .iter()
+            .find(|c| c["object"] == name && c["stage"] == "recognition")
+            .unwrap_or_else(|| panic!("no recognition counters of {name}: {summary}"));
+        assert_eq!(recognition["processed"], frames, "{recognition}");
+    }
     for (name, report) in [("fruitbox", &mut fruitbox_report), ("can", &mut can_report)] {
         let file = rows(&dir.path().join(format!("r-{name}.jsonl")));
         assert_eq!(file.len() as u64, frames, "{name}");

@@ -512,13 +512,6 @@ impl PipelineConfig {
                 "recordings hold one object: run it without objects = [...]",
             );
         }
-        if self.ros2.enabled {
-            return bad(
-                "ros2.enabled",
-                "true".into(),
-                "ROS 2 topics are published for one object: run it without objects = [...]",
-            );
-        }
         Ok(())
     }
 

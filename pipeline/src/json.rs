@@ -308,15 +308,16 @@ impl ZenohSink {
     pub fn open(cfg: &crate::PipelineConfig) -> Result<Self, crate::observe::ObserveError> {
         let session = acch_ipc::open_session(&cfg.zenoh.listen, &cfg.zenoh.connect)
             .map_err(acch_ipc::IpcError::from)?;
-        Self::on_session(session, cfg, &cfg.object)
+        Self::on_session(session, cfg, &cfg.object, crate::ros2::Ros2Role::Only)
     }
 
     /// The sink of `object` on an open session (several objects share
-    /// one).
+    /// one), its ROS 2 node, if enabled, in `role`.
     pub fn on_session(
         session: zenoh::Session,
         cfg: &crate::PipelineConfig,
         object: &str,
+        role: crate::ros2::Ros2Role,
     ) -> Result<Self, crate::observe::ObserveError> {
         let config = &cfg.zenoh;
         let publisher = |key: String| {
@@ -330,7 +331,7 @@ impl ZenohSink {
             ros2: cfg
                 .ros2
                 .enabled
-                .then(|| crate::ros2::Ros2Out::declare(&session, &cfg.ros2, object))
+                .then(|| crate::ros2::Ros2Out::declare(&session, &cfg.ros2, object, role))
                 .transpose()?,
             _session: session,
         })

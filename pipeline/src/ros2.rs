@@ -401,11 +401,27 @@ pub struct Ros2Out {
     pub images: Option<Ros2Images>,
     seed: acch_ros2::node::Publisher<PoseWithCovarianceStamped>,
     fused: acch_ros2::node::Publisher<PoseWithCovarianceStamped>,
-    camera_info: acch_ros2::node::Publisher<CameraInfo>,
+    /// The camera's topics (info and images) go out from one object's
+    /// node only when several share a frame.
+    camera_info: Option<acch_ros2::node::Publisher<CameraInfo>>,
     tf: Option<acch_ros2::node::Publisher<TFMessage>>,
     messages: Ros2Messages,
     // Last: the publishers go before the node's token.
     _node: Node,
+}
+
+/// Which node an object's ROS 2 publishers are declared on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ros2Role {
+    /// The one object of the run: node `ros2.node`, with the camera's
+    /// topics.
+    Only,
+    /// One of several objects: node `<ros2.node>_<object>`; `camera` says
+    /// whether this one publishes the camera's topics (the first does).
+    OneOf {
+        /// Publishes camera info and images.
+        camera: bool,
+    },
 }
 
 impl Ros2Out {
@@ -414,10 +430,16 @@ impl Ros2Out {
         session: &zenoh::Session,
         config: &Ros2Config,
         object: &str,
+        role: Ros2Role,
     ) -> Result<Self, Ros2OutError> {
-        let node = Node::new(session, config.node_config(&config.node))?;
+        let (name, camera) = match role {
+            Ros2Role::Only => (config.node.clone(), true),
+            Ros2Role::OneOf { camera } => (format!("{}_{object}", config.node), camera),
+        };
+        let node = Node::new(session, config.node_config(&name))?;
         Ok(Ros2Out {
             images: match config.image_every {
+                _ if !camera => None,
                 0 => None,
                 every => Some(Ros2Images {
                     publisher: node.publisher(topics::IMAGE, QOS)?,
@@ -430,7 +452,11 @@ impl Ros2Out {
             },
             seed: node.publisher(&topics::seed(object), QOS)?,
             fused: node.publisher(&topics::fused(object), QOS)?,
-            camera_info: node.publisher(topics::CAMERA_INFO, QOS)?,
+            camera_info: if camera {
+                Some(node.publisher(topics::CAMERA_INFO, QOS)?)
+            } else {
+                None
+            },
             tf: if config.tf {
                 Some(node.publisher(topics::TF, TF_QOS)?)
             } else {
@@ -447,7 +473,9 @@ impl Ros2Out {
         let filled = self.messages.fill(m);
         let now = acch_ros2::node::now_ns();
         let msgs = &self.messages;
-        self.camera_info.publish(&msgs.camera_info, now)?;
+        if let Some(info) = &mut self.camera_info {
+            info.publish(&msgs.camera_info, now)?;
+        }
         if filled.seed {
             self.seed.publish(&msgs.seed, now)?;
         }

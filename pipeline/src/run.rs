@@ -499,9 +499,14 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
         .map_err(IpcError::from)?;
     let mut sinks = Vec::new();
     let mut files = Vec::new();
-    for name in &names {
+    for (i, name) in names.iter().enumerate() {
+        if cfg.ros2.enabled {
+            // Its name goes into topic and node names.
+            cfg.ros2.validate(name)?;
+        }
         if let Some(session) = &session {
-            sinks.push(ZenohSink::on_session(session.clone(), cfg, name)?);
+            let role = crate::ros2::Ros2Role::OneOf { camera: i == 0 };
+            sinks.push(ZenohSink::on_session(session.clone(), cfg, name, role)?);
         }
         if let Some(path) = &opts.results {
             files.push(JsonLines::create(&per_object_path(path, name), name)?);
@@ -512,25 +517,35 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
     let mut last_to_finish = Vec::with_capacity(cfg.frames as usize);
     let (cpu0, _) = self_usage();
     let t0 = Instant::now();
-    crate::chain::run_frames(&mut source, (cfg.frames, pacing), None, |frame, rgb| {
-        let outs = chain.process(frame, rgb);
-        for (o, out) in outs.iter().enumerate() {
-            if let Some(sink) = sinks.get_mut(o) {
-                sink.result(out)?;
+    let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
+    crate::chain::run_frames(
+        &mut source,
+        (cfg.frames, pacing),
+        arm.as_ref(),
+        |frame, rgb| {
+            if let Some(first) = sinks.first_mut() {
+                // The camera's ROS 2 image, when configured.
+                first.frame(frame, rgb)?;
             }
-            if let Some(file) = files.get_mut(o) {
-                file.result(out)?;
+            let outs = chain.process(frame, rgb);
+            for (o, out) in outs.iter().enumerate() {
+                if let Some(sink) = sinks.get_mut(o) {
+                    sink.result(out)?;
+                }
+                if let Some(file) = files.get_mut(o) {
+                    file.result(out)?;
+                }
+                per_object[o].push(*out);
             }
-            per_object[o].push(*out);
-        }
-        if let Some(last) = outs
-            .iter()
-            .max_by_key(|m| m.envelope().trail.end_to_end_ns())
-        {
-            last_to_finish.push(*last);
-        }
-        Ok(())
-    })?;
+            if let Some(last) = outs
+                .iter()
+                .max_by_key(|m| m.envelope().trail.end_to_end_ns())
+            {
+                last_to_finish.push(*last);
+            }
+            Ok(())
+        },
+    )?;
     let elapsed = t0.elapsed().as_secs_f64();
     let usage = this_process(cpu0, elapsed);
     for f in &mut files {
@@ -548,6 +563,22 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
             outcomes: Outcomes::of(got),
             suppressed: lane.suppressed,
         })
+        .collect();
+    // Capture's, then each object's stages', named by the object.
+    let capture = serde_json::json!({
+        "stage": "capture",
+        "sent": last_to_finish.len(),
+        "skipped_size": source.skipped,
+        "camera": source.camera_counters(),
+    });
+    s.stage_counters = std::iter::once(capture)
+        .chain(chain.lanes().iter().flat_map(|lane| {
+            lane.chain.counters().iter().map(|c| {
+                let mut v = serde_json::to_value(c).expect("counters serialise");
+                v["object"] = serde_json::json!(lane.object);
+                v
+            })
+        }))
         .collect();
     if opts.samples {
         s.samples = Some(Samples::of(&last_to_finish, false));
