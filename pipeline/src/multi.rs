@@ -35,6 +35,11 @@ pub struct MultiChain {
     lanes: Vec<Lane>,
     seeded: Vec<Seeded>,
     threads: usize,
+    /// The frame's windows and what suppression keeps, reused between
+    /// frames so a frame allocates nothing here.
+    windows: Vec<Option<Window>>,
+    order: Vec<usize>,
+    keep: Vec<bool>,
 }
 
 impl MultiChain {
@@ -59,6 +64,9 @@ impl MultiChain {
             seeded: vec![Seeded::default(); lanes.len()],
             lanes,
             threads: threads.max(1),
+            windows: Vec::new(),
+            order: Vec::new(),
+            keep: Vec::new(),
         })
     }
 
@@ -76,15 +84,14 @@ impl MultiChain {
     /// lane's result, in lane order.
     pub fn process(&mut self, frame: &FrameHeader, rgb: &[u8]) -> &[Seeded] {
         self.each_lane(|lane| lane.recognised = lane.chain.recognise(frame, rgb));
-        let windows: Vec<Option<Window>> = self
-            .lanes
-            .iter()
-            .map(|l| match l.recognised.detection {
+        self.windows.clear();
+        self.windows
+            .extend(self.lanes.iter().map(|l| match l.recognised.detection {
                 Outcome::Done(w) => Some(w),
                 _ => None,
-            })
-            .collect();
-        for (lane, keep) in self.lanes.iter_mut().zip(suppress(&windows)) {
+            }));
+        suppress_into(&self.windows, &mut self.order, &mut self.keep);
+        for (lane, &keep) in self.lanes.iter_mut().zip(&self.keep) {
             if !keep {
                 lane.recognised.detection = Outcome::Nothing;
                 lane.suppressed += 1;
@@ -131,24 +138,31 @@ impl MultiChain {
 /// objects whose models score on different scales) first, each later one
 /// kept only if it overlaps no kept window by more than [`NMS_OVERLAP`].
 pub fn suppress(windows: &[Option<Window>]) -> Vec<bool> {
-    let margin = |w: &Window| w.score / w.threshold.max(f32::MIN_POSITIVE);
-    let mut order: Vec<usize> = (0..windows.len())
-        .filter(|&i| windows[i].is_some())
-        .collect();
-    order.sort_by(|&a, &b| {
-        let (wa, wb) = (windows[a].as_ref(), windows[b].as_ref());
-        margin(wb.expect("filtered")).total_cmp(&margin(wa.expect("filtered")))
-    });
-    let mut keep = vec![false; windows.len()];
-    let mut kept: Vec<PixelRect> = Vec::new();
-    for i in order {
-        let w = windows[i].expect("filtered").window;
-        if kept.iter().all(|k| overlap(k, &w) <= NMS_OVERLAP) {
-            keep[i] = true;
-            kept.push(w);
-        }
-    }
+    let (mut order, mut keep) = (Vec::new(), Vec::new());
+    suppress_into(windows, &mut order, &mut keep);
     keep
+}
+
+/// [`suppress`] into `keep`, with `order` as scratch (no allocation once
+/// they have grown to the number of lanes).
+fn suppress_into(windows: &[Option<Window>], order: &mut Vec<usize>, keep: &mut Vec<bool>) {
+    let margin =
+        |i: usize| windows[i].map_or(0.0, |w| w.score / w.threshold.max(f32::MIN_POSITIVE));
+    order.clear();
+    order.extend((0..windows.len()).filter(|&i| windows[i].is_some()));
+    // Unstable sorts do not allocate; ties go to the earlier lane.
+    order.sort_unstable_by(|&a, &b| margin(b).total_cmp(&margin(a)).then(a.cmp(&b)));
+    keep.clear();
+    keep.resize(windows.len(), false);
+    let window = |i: usize| windows[i].expect("only detections are ordered").window;
+    for (pos, &i) in order.iter().enumerate() {
+        let w = window(i);
+        let free = order[..pos]
+            .iter()
+            .filter(|&&k| keep[k])
+            .all(|&k| overlap(&window(k), &w) <= NMS_OVERLAP);
+        keep[i] = free;
+    }
 }
 
 /// The intersection of two pixel rectangles over the smaller's area (0

@@ -13,11 +13,11 @@ use image::{GrayImage, RgbImage};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::background::{Background, Placed, TABLE_TILE, TextureSet, distractor, hsv};
+use crate::background::{Background, Placed, TextureSet, distractor, hsv};
 use crate::effects::{self, Effects};
 use crate::object::Object;
-use crate::raster::{Frame, draw_object, draw_table, light_world};
-use crate::render::{BBox, mask_bbox, table_of};
+use crate::raster::{Frame, draw_object, light_world};
+use crate::render::{BBox, draw_background, mask_bbox, table_of};
 use crate::texture::Texture;
 use crate::{CaptureError, Intrinsics, ViewPose};
 
@@ -28,9 +28,6 @@ pub const MAX_SCENE_OBJECTS: usize = 16;
 /// radii: far enough back that three or four objects side by side fit the
 /// default camera's view.
 pub const MULTI_DISTANCE: f64 = 6.5;
-
-/// Colour shown where camera rays miss the table, as in a single scene.
-const WALL: [u8; 3] = [118, 120, 126];
 
 /// Where the light comes from, relative to each object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -336,27 +333,13 @@ impl MultiRenderer {
             w,
             h,
         };
-        if let Some(table) = &self.table {
-            draw_table(
-                &mut frame,
-                table,
-                TABLE_TILE,
-                &world_from_camera.matrix3,
-                world_from_camera.translation,
-                &k,
-                self.table_z,
-                WALL,
-            );
-        } else {
-            let c = match self.scene.background {
-                Background::Plain(c) => c,
-                _ => Background::DEFAULT_PLAIN,
-            };
-            frame
-                .rgb
-                .chunks_exact_mut(3)
-                .for_each(|px| px.copy_from_slice(&c));
-        }
+        draw_background(
+            &mut frame,
+            (self.table.as_deref(), self.scene.background),
+            &world_from_camera,
+            &k,
+            self.table_z,
+        );
         let world_light = camera_from_world.matrix3 * light_world();
         for (i, p) in self.placed.iter().enumerate() {
             let cam_from_obj = camera_from_world * p.world_from_object;

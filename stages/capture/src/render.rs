@@ -207,26 +207,13 @@ impl Renderer {
                 w: wu,
                 h: hu,
             };
-            if let Some(table) = &self.table {
-                draw_table(
-                    &mut frame,
-                    table,
-                    TABLE_TILE,
-                    &world_from_camera.matrix3,
-                    world_from_camera.translation,
-                    &k,
-                    self.table_z(),
-                    WALL,
-                );
-            } else {
-                let c = match self.config.background {
-                    Background::Plain(c) => c,
-                    _ => Background::DEFAULT_PLAIN,
-                };
-                for px in frame.rgb.chunks_exact_mut(3) {
-                    px.copy_from_slice(&c);
-                }
-            }
+            draw_background(
+                &mut frame,
+                (self.table.as_deref(), self.config.background),
+                &world_from_camera,
+                &k,
+                self.table_z(),
+            );
             let light_cam = camera_from_world.matrix3 * light_world();
             draw_object(
                 &mut frame,
@@ -262,6 +249,37 @@ impl Renderer {
             intrinsics: k,
             bbox: mask_bbox(&out.mask),
         };
+    }
+}
+
+/// Draws what lies behind the objects: `table` (the texture of
+/// `background`) as the plane `z = table_z`, or `background`'s plain colour.
+pub(crate) fn draw_background(
+    frame: &mut Frame,
+    (table, background): (Option<&Texture>, Background),
+    world_from_camera: &DAffine3,
+    k: &Intrinsics,
+    table_z: f64,
+) {
+    if let Some(table) = table {
+        draw_table(
+            frame,
+            table,
+            TABLE_TILE,
+            &world_from_camera.matrix3,
+            world_from_camera.translation,
+            k,
+            table_z,
+            WALL,
+        );
+    } else {
+        let c = match background {
+            Background::Plain(c) => c,
+            _ => Background::DEFAULT_PLAIN,
+        };
+        for px in frame.rgb.chunks_exact_mut(3) {
+            px.copy_from_slice(&c);
+        }
     }
 }
 
