@@ -42,7 +42,8 @@ pub struct PipelineConfig {
     /// How many of `objects` the simulated scene shows, the first ones
     /// (0: all).
     pub objects_in_view: usize,
-    /// Threads the objects' chains share per frame (0: one per CPU the
+    /// Threads the objects' chains run on, kept for the run and each pinned
+    /// to a CPU of its own when the run may use as many (0: one per CPU the
     /// run may use, at most one per object). With several objects and
     /// `stage_cpus = "auto"` the run is not pinned, so they spread over
     /// every CPU.

@@ -3,14 +3,16 @@
 //! frame; where two objects' windows cover the same place, only the one
 //! that cleared its threshold by the wider margin goes on (non-maximum
 //! suppression between objects); then segmentation, pose, confidence and
-//! seeding run per detection.
+//! seeding run per detection. The lanes run on a pool of threads that live
+//! as long as the chain, each on a CPU of its own (docs/multi.md: a thread
+//! started per frame waits for the CPU of the thread that started it).
 
 use crate::chain::Chain;
 use crate::frame::FrameHeader;
 use crate::stages::{BuildError, Recognised, Seeded, StageSettings, Window};
 use crate::wire::{Outcome, PixelRect};
 use acch_core::ViewDatabase;
-use std::sync::Mutex;
+use rayon::prelude::*;
 
 /// Windows of two objects overlapping by more than this share of the
 /// smaller one claim the same place: the weaker is withdrawn. Of the
@@ -34,7 +36,8 @@ pub struct Lane {
 pub struct MultiChain {
     lanes: Vec<Lane>,
     seeded: Vec<Seeded>,
-    threads: usize,
+    /// The lanes' threads; `None` runs every lane on the caller's.
+    pool: Option<rayon::ThreadPool>,
     /// The frame's windows and what suppression keeps, reused between
     /// frames so a frame allocates nothing here.
     windows: Vec<Option<Window>>,
@@ -44,7 +47,8 @@ pub struct MultiChain {
 
 impl MultiChain {
     /// A lane per database, each with its own settings, run on up to
-    /// `threads` threads per frame (1: all on the caller's).
+    /// `threads` threads (1: all on the caller's). With as many CPUs
+    /// allowed as threads, each thread is pinned to one of them.
     pub fn build(
         objects: &[(&ViewDatabase, StageSettings)],
         threads: usize,
@@ -60,10 +64,12 @@ impl MultiChain {
                 })
             })
             .collect::<Result<Vec<_>, BuildError>>()?;
+        let threads = threads.clamp(1, lanes.len().max(1));
+        let pool = (threads > 1).then(|| lane_pool(threads)).transpose()?;
         Ok(MultiChain {
             seeded: vec![Seeded::default(); lanes.len()],
             lanes,
-            threads: threads.max(1),
+            pool,
             windows: Vec::new(),
             order: Vec::new(),
             keep: Vec::new(),
@@ -107,30 +113,35 @@ impl MultiChain {
         &self.seeded
     }
 
-    /// Runs `work` on every lane, spread over the chain's threads: each
-    /// thread takes the next lane not yet taken, so a slow lane does not
-    /// hold up a whole share.
-    fn each_lane(&mut self, work: impl Fn(&mut Lane) + Sync) {
-        let threads = self.threads.min(self.lanes.len());
-        if threads <= 1 {
-            self.lanes.iter_mut().for_each(work);
-            return;
+    /// Runs `work` on every lane, spread over the chain's threads (a
+    /// thread that is done takes a lane another has not started).
+    fn each_lane(&mut self, work: impl Fn(&mut Lane) + Sync + Send) {
+        match &self.pool {
+            Some(pool) => {
+                pool.install(|| self.lanes.par_iter_mut().with_max_len(1).for_each(&work))
+            }
+            None => self.lanes.iter_mut().for_each(work),
         }
-        let next = Mutex::new(self.lanes.iter_mut());
-        let take = || next.lock().unwrap_or_else(|e| e.into_inner()).next();
-        std::thread::scope(|s| {
-            for _ in 1..threads {
-                s.spawn(|| {
-                    while let Some(lane) = take() {
-                        work(lane);
-                    }
-                });
-            }
-            while let Some(lane) = take() {
-                work(lane);
-            }
-        });
     }
+}
+
+/// `threads` threads for the lanes, thread `i` pinned to the `i`-th CPU
+/// the process may use when it may use that many: a woken thread is
+/// otherwise queued behind the thread that woke it on one CPU while the
+/// other idles (about 2 ms a phase here, docs/multi.md).
+fn lane_pool(threads: usize) -> Result<rayon::ThreadPool, BuildError> {
+    let cpus = acch_ipc::sched::allowed_cpus().unwrap_or_default();
+    let pin = cpus.len() >= threads;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(|i| format!("acch-lane-{i}"))
+        .start_handler(move |i| {
+            if pin && let Err(e) = acch_ipc::sched::pin_to(&cpus[i..=i]) {
+                tracing::warn!("lane thread {i} not pinned to CPU {}: {e}", cpus[i]);
+            }
+        })
+        .build()
+        .map_err(|e| BuildError::Threads(e.to_string()))
 }
 
 /// Which of `windows` survive non-maximum suppression: the strongest by
@@ -198,6 +209,20 @@ mod tests {
             threshold,
             ..Window::default()
         })
+    }
+
+    #[test]
+    fn lane_threads_each_run_on_a_cpu_of_their_own() {
+        let cpus = acch_ipc::sched::allowed_cpus().unwrap();
+        let pool = lane_pool(2).unwrap();
+        let mut seen = pool.broadcast(|_| acch_ipc::sched::allowed_cpus().unwrap());
+        if cpus.len() < 2 {
+            // One CPU: nothing to spread over, the threads are left as they are.
+            assert!(seen.iter().all(|s| *s == cpus), "{seen:?}");
+            return;
+        }
+        seen.sort();
+        assert_eq!(seen, [vec![cpus[0]], vec![cpus[1]]]);
     }
 
     #[test]

@@ -29,7 +29,8 @@ pub struct RunArgs {
     /// recognised in every frame, and its results and seeds published at
     /// acch/<object>/result and .../seed. A named object's database is
     /// trained (first use, cached) to search the roll within ±45°: objects
-    /// off the optical axis are seen rolled. Needs --in-process.
+    /// off the optical axis are seen rolled. Runs in one process (the
+    /// objects' stages as lanes on threads), --in-process or not.
     #[arg(long, value_name = "LIST", conflicts_with_all = ["db", "object", "mesh"])]
     pub(crate) objects: Option<String>,
     /// With --objects: how many of them the simulated scene shows, the
@@ -228,12 +229,6 @@ impl RunArgs {
         }
         cfg.validate().context("invalid pipeline configuration")?;
         if !cfg.objects.is_empty() {
-            if !self.in_process {
-                bail!(
-                    "--objects: several objects run in one process only: add --in-process \
-                     (the stage processes carry one object)"
-                );
-            }
             if cfg.object_dbs.is_empty() {
                 cfg.object_dbs = self.object_databases(&cfg)?;
             }
@@ -329,13 +324,22 @@ pub fn run(args: RunArgs) -> Result<()> {
             "acch run: UNRATED: the run rates no estimate, so none is accepted and no seed is published"
         );
     }
-    let summary = if args.in_process {
+    // The stage processes carry one object: several run in one process.
+    let summary = if args.in_process || !cfg.objects.is_empty() {
         let what = if cfg.objects.is_empty() {
             cfg.object.clone()
         } else {
             cfg.objects.join(", ")
         };
-        eprintln!("acch run: {} frames of {what} in one process", cfg.frames);
+        let how = if args.in_process || cfg.objects.is_empty() {
+            ""
+        } else {
+            " (several objects run as lanes on threads of one process; the stage processes carry one object)"
+        };
+        eprintln!(
+            "acch run: {} frames of {what} in one process{how}",
+            cfg.frames
+        );
         acch_pipeline::run_in_process(&cfg, &opts)?
     } else {
         let exe = std::env::current_exe().context("locating the acch executable")?;

@@ -78,6 +78,9 @@ pub enum BuildError {
     /// The recognition model is unusable.
     #[error(transparent)]
     Recognition(#[from] acch_recognition::RecognitionError),
+    /// The threads of several objects' lanes could not be started.
+    #[error("could not start the threads of the objects' lanes: {0}")]
+    Threads(String),
     /// The segmenter refused the frame size.
     #[error(transparent)]
     Segmentation(#[from] acch_segmentation::SegmentationError),
