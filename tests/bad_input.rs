@@ -128,6 +128,14 @@ fn nan_and_negative_command_line_values_name_the_option() {
         (&["run", "--frames=-3"][..], "--frames"),
         (&["run", "--resolution", "0x480"][..], "0x480"),
         (
+            &["run", "--light-directions", "0"][..],
+            "light_directions = 0",
+        ),
+        (
+            &["eval", "--protocol", "robust", "--light-directions", "0"][..],
+            "--light-directions",
+        ),
+        (
             &["run", "--stall-timeout", "nan", "--frames", "1"][..],
             "stall-timeout",
         ),

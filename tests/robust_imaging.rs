@@ -2,6 +2,8 @@
 //! is found and estimated at half the exposure and under a warm light; with
 //! the training light only the same scenes lose it, so the check can fail.
 //! The renderer's new effects reach `acch render` and name bad values.
+//! Light turned to another side breaks the default database and not the
+//! light-tolerant one (`--light-directions 8`).
 
 mod common;
 
@@ -65,6 +67,62 @@ fn the_light_search_holds_where_the_training_light_alone_loses_the_object() {
 }
 
 #[test]
+fn views_lit_from_every_side_hold_a_light_turned_where_the_default_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |directions: &str| -> Vec<Value> {
+        let json = dir.path().join(format!("light-{directions}.json"));
+        ok(&acch(
+            &[
+                "eval",
+                "--protocol",
+                "robust",
+                "--object",
+                "can",
+                "--n",
+                "4",
+                "--seed",
+                "11",
+                "--families",
+                "light_direction",
+                "--light-directions",
+                directions,
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            dir.path(),
+        ));
+        let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        report["rows"].as_array().unwrap().clone()
+    };
+    let (default, tolerant) = (run("1"), run("8"));
+    let f = |r: &Value, k: &str| r[k].as_f64().unwrap();
+    let turned = |rows: &[Value]| -> Vec<Value> {
+        rows.iter()
+            .filter(|r| r["family"] == "light_direction")
+            .cloned()
+            .collect()
+    };
+    let worst = |rows: &[Value]| {
+        turned(rows)
+            .iter()
+            .map(|r| f(r, "failure_rate"))
+            .fold(0.0, f64::max)
+    };
+    assert_eq!(turned(&tolerant).len(), 8, "{tolerant:?}");
+    for r in turned(&tolerant) {
+        assert!(f(&r, "failure_rate") <= 0.1, "{r}");
+        assert!(f(&r, "acc_failure_rate") <= 0.1, "{r}");
+        assert!(f(&r, "accepted_rate") >= 0.7, "{r}");
+    }
+    eprintln!(
+        "worst failure rate under a turned light: default {:.2}, light-tolerant {:.2}",
+        worst(&default),
+        worst(&tolerant)
+    );
+    assert!(worst(&default) >= worst(&tolerant) + 0.2, "{default:?}");
+}
+
+#[test]
 fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("v");
@@ -116,7 +174,12 @@ fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
     );
     ok(&render(&["--jpeg-quality", "40"]));
     assert_eq!(mask_pixels(), clean_mask);
+    // The light turned to the other side: the same pixels, shaded otherwise.
+    ok(&render(&["--light-azimuth-deg", "180"]));
+    assert_eq!(mask_pixels(), clean_mask);
+    assert_ne!(mean(), clean);
     for (flag, value) in [
+        ("--light-azimuth-deg", "400"),
         ("--colour-temp-k", "200"),
         ("--occlusion", "1.5"),
         ("--vignetting", "-0.1"),

@@ -34,7 +34,7 @@ pub struct Family {
 
 /// The families and levels measured; the clean scene is level "clean" of
 /// every family's row set.
-pub const FAMILIES: [Family; 8] = [
+pub const FAMILIES: [Family; 9] = [
     Family {
         name: "exposure",
         unit: "x linear light",
@@ -74,6 +74,11 @@ pub const FAMILIES: [Family; 8] = [
         name: "distance",
         unit: "x training distance",
         levels: &[0.7, 0.85, 1.25, 1.5],
+    },
+    Family {
+        name: "light_direction",
+        unit: "degrees the light is turned about the vertical",
+        levels: &[20.0, 45.0, 70.0, 90.0, 110.0, 135.0, 160.0, 180.0],
     },
 ];
 
@@ -158,6 +163,7 @@ fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneCo
         Some(("blur", v)) => fx.blur_sigma = v as f32,
         Some(("jpeg", v)) => fx.jpeg_quality = v as u8,
         Some(("occlusion", v)) => config.occlusion = v as f32,
+        Some(("light_direction", v)) => config.light_azimuth_deg = v as f32,
         // The camera's distance is the view's, not the scene's.
         Some(_) => {}
     }

@@ -138,7 +138,7 @@ pub fn roll(
     let (rolled_db, choice) = trained(ConfidenceScenes {
         roll_deg: o.search_deg,
         search_deg: o.search_deg,
-        imaging: false,
+        ..ConfidenceScenes::default()
     })?;
     let mut databases = vec![("roll-trained", rolled_db)];
     if o.compare {

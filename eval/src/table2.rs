@@ -145,6 +145,10 @@ pub struct Table2Options {
     /// The table textures of the test scenes: held out from the confidence
     /// network's training scenes, or the very ones it was trained on.
     pub textures: TextureSet,
+    /// The training views lit from this many directions around the
+    /// vertical and half the confidence scenes from a turned one (1: the
+    /// training light only, the default recipe).
+    pub light_directions: usize,
 }
 
 /// Runs table 2 for `object`.
@@ -153,12 +157,21 @@ pub fn table2(
     options: &Table2Options,
     config: &TrainConfig,
 ) -> Result<Table2Report, EvalError> {
-    let Table2Options { n, seed, textures } = *options;
+    let Table2Options {
+        n,
+        seed,
+        textures,
+        light_directions,
+    } = *options;
     if n == 0 {
         return Err(EvalError::Input("--n must be at least 1".into()));
     }
     let start = Instant::now();
-    let mut db = train::train_rendered(&object, config, &RenderedTraining::default())?;
+    let training = RenderedTraining {
+        light_directions,
+        ..RenderedTraining::default()
+    };
+    let mut db = train::train_rendered(&object, config, &training)?;
     // The deployed recipe: both inputs trained on the confidence-training
     // scenes, the one with the higher AUC on the validation scenes kept;
     // the other is measured beside it.
@@ -167,7 +180,10 @@ pub fn table2(
         &object,
         DEFAULT_CONFIDENCE_SCENES,
         DEFAULT_DISTANCE,
-        train::ConfidenceScenes::default(),
+        train::ConfidenceScenes {
+            light_turned: light_directions > 1,
+            ..train::ConfidenceScenes::default()
+        },
         0,
     )?;
     model.store(&mut db);

@@ -84,6 +84,10 @@ pub struct RenderedTraining {
     /// searches the roll on them and whether some are imaged under other
     /// light (upright, no search, the training light by default).
     pub scenes: ConfidenceScenes,
+    /// The light from this many directions around the vertical, evenly
+    /// spaced from the training light's (1: that one only); each view's
+    /// histogram is the mean over them, the palette sees them all.
+    pub light_directions: usize,
 }
 
 /// How the confidence-training (and validation) scenes are taken: their
@@ -105,6 +109,10 @@ pub struct ConfidenceScenes {
     /// the candidates: a network that has seen weak and relit matches go
     /// wrong. Off by default: the default database is what it always was.
     pub imaging: bool,
+    /// Every other scene lit from a direction turned about the vertical by
+    /// an angle drawn uniformly (the training light for the rest): a
+    /// network that has seen estimates under light from another side.
+    pub light_turned: bool,
 }
 
 impl ConfidenceScenes {
@@ -145,6 +153,7 @@ impl Default for RenderedTraining {
             distance: DEFAULT_DISTANCE,
             seed: 0,
             scenes: ConfidenceScenes::default(),
+            light_directions: 1,
         }
     }
 }
@@ -172,13 +181,23 @@ pub fn train_rendered(
     training: &RenderedTraining,
 ) -> Result<ViewDatabase, EvalError> {
     let views = training.views.views(training.distance, training.seed);
-    let renderer = protocol::renderer(
-        object.clone(),
-        training.background,
-        TextureSet::Training,
-        training.seed,
-    );
-    let renders = protocol::render_views(&renderer, &views, training.seed, "train views");
+    let directions = training.light_directions.max(1);
+    let mut renders = Vec::with_capacity(views.len() * directions);
+    for k in 0..directions {
+        let mut renderer = protocol::renderer(
+            object.clone(),
+            training.background,
+            TextureSet::Training,
+            training.seed,
+        );
+        renderer.set_light_azimuth_deg(360.0 * k as f32 / directions as f32);
+        renders.extend(protocol::render_views(
+            &renderer,
+            &views,
+            training.seed,
+            "train views",
+        ));
+    }
     let labelled: Vec<LabelledView> = renders
         .iter()
         .map(|r| protocol::labelled(r, training.distance))
@@ -251,6 +270,8 @@ pub fn confidence_samples(
         let views = confidence_views(per_background, distance, seed, scenes.roll_deg)?;
         let renders = if scenes.imaging {
             render_imaged(object, background, &views, seed, name)
+        } else if scenes.light_turned {
+            render_light_turned(object, background, &views, seed, name)
         } else {
             let renderer =
                 protocol::renderer(object.clone(), background, TextureSet::Training, seed);
@@ -354,6 +375,48 @@ fn render_imaged(
                 &renderers[0]
             } else {
                 &renderers[1 + (i / 2) % IMAGING_CONDITIONS]
+            };
+            let r = renderer.render(v, acch_capture::frame_seed(seed, i));
+            bar.inc(1);
+            r
+        })
+        .collect();
+    bar.finish_and_clear();
+    out
+}
+
+/// Light directions the turned confidence scenes are drawn among.
+const TURNED_LIGHTS: usize = 8;
+
+/// The views rendered on `background`, the even ones as the training
+/// views are lit, the odd ones with the light turned about the vertical
+/// by an angle drawn per view.
+fn render_light_turned(
+    object: &Arc<Object>,
+    background: Background,
+    views: &[ViewPose],
+    seed: u64,
+    name: &str,
+) -> Vec<Rendered> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x006c_6967_6874);
+    let turned: Vec<Renderer> = (0..TURNED_LIGHTS)
+        .map(|_| {
+            let mut r = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+            r.set_light_azimuth_deg(rng.random_range(20.0..340.0));
+            r
+        })
+        .collect();
+    let lit = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+    let bar = protocol::progress(views.len() as u64, name);
+    let out = views
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let renderer = if i % 2 == 0 {
+                &lit
+            } else {
+                &turned[(i / 2) % TURNED_LIGHTS]
             };
             let r = renderer.render(v, acch_capture::frame_seed(seed, i));
             bar.inc(1);
@@ -766,6 +829,112 @@ pub fn cached_database_path(object: &Object, dir: Option<PathBuf>, imaging: bool
     ))
 }
 
+/// What a cached database is trained for beyond the default recipe; each
+/// recipe has a file of its own beside the default one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Recipe {
+    /// Confidence scenes imaged under other light and a worse camera
+    /// ([`ConfidenceScenes::imaging`]).
+    pub imaging: bool,
+    /// Confidence scenes rolled within ± this many degrees and estimated
+    /// with that roll search, which runs then use (0: upright, none).
+    pub roll_search_deg: f64,
+    /// Training views lit from this many directions around the vertical
+    /// ([`RenderedTraining::light_directions`]) and half the confidence
+    /// scenes lit from a turned one (1: the training light only).
+    pub light_directions: usize,
+}
+
+impl Default for Recipe {
+    /// The default recipe.
+    fn default() -> Self {
+        Recipe {
+            imaging: false,
+            roll_search_deg: 0.0,
+            light_directions: 1,
+        }
+    }
+}
+
+impl Recipe {
+    /// Refuses what cannot be trained, naming the option.
+    fn check(&self) -> Result<(), EvalError> {
+        let deg = self.roll_search_deg;
+        if !(deg.is_finite() && (0.0..=180.0).contains(&deg)) {
+            return Err(EvalError::Input(format!(
+                "--roll-search-deg {deg} must be a finite number of degrees in [0, 180]"
+            )));
+        }
+        if self.light_directions == 0 {
+            return Err(EvalError::Input(
+                "--light-directions 0: at least 1 (the training light's)".into(),
+            ));
+        }
+        if self.imaging && self.light_directions > 1 {
+            return Err(EvalError::Input(
+                "--confidence-imaging and --light-directions: one at a time".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The file's suffix after the default one's stem ("" for the default).
+    fn suffix(&self) -> String {
+        let mut s = String::new();
+        if self.imaging {
+            s += "-imaging";
+        }
+        if self.roll_search_deg > 0.0 {
+            s += &format!("-roll{}", self.roll_search_deg);
+        }
+        if self.light_directions > 1 {
+            s += &format!("-lights{}", self.light_directions);
+        }
+        s
+    }
+
+    /// What the training message calls it ("" for the default).
+    fn what(&self) -> String {
+        let mut s = String::new();
+        if self.imaging {
+            s += "imaging-aware ";
+        }
+        if self.roll_search_deg > 0.0 {
+            s += "roll-searching ";
+        }
+        if self.light_directions > 1 {
+            s += "light-tolerant ";
+        }
+        s
+    }
+}
+
+/// The database of `object` trained with `recipe` and the file it is
+/// cached in: trained on first use and cached, so later runs start at once.
+pub fn cached_recipe_database(
+    object: &Arc<Object>,
+    dir: Option<PathBuf>,
+    recipe: Recipe,
+) -> Result<(ViewDatabase, PathBuf), EvalError> {
+    recipe.check()?;
+    let default = cached_database_path(object, dir, false);
+    let stem = default.file_stem().unwrap_or_default().to_string_lossy();
+    let path = default.with_file_name(format!("{stem}{}.acchdb", recipe.suffix()));
+    let scenes = ConfidenceScenes {
+        roll_deg: recipe.roll_search_deg,
+        search_deg: recipe.roll_search_deg,
+        imaging: recipe.imaging,
+        light_turned: recipe.light_directions > 1,
+    };
+    cached_with(
+        object,
+        path,
+        &recipe.what(),
+        scenes,
+        recipe.light_directions,
+    )
+}
+
 /// The default database of a built-in object and the file it is cached
 /// in: trained on first use with the default recipe and cached, so later
 /// runs start at once.
@@ -773,7 +942,7 @@ pub fn cached_database(
     object: &Arc<Object>,
     dir: Option<PathBuf>,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    cached_database_with(object, dir, false)
+    cached_recipe_database(object, dir, Recipe::default())
 }
 
 /// [`cached_database`], or with `imaging` the default recipe with the
@@ -784,17 +953,11 @@ pub fn cached_database_with(
     dir: Option<PathBuf>,
     imaging: bool,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let scenes = ConfidenceScenes {
+    let recipe = Recipe {
         imaging,
-        ..ConfidenceScenes::default()
+        ..Recipe::default()
     };
-    let what = if imaging { "imaging-aware " } else { "" };
-    cached(
-        object,
-        cached_database_path(object, dir, imaging),
-        what,
-        scenes,
-    )
+    cached_recipe_database(object, dir, recipe)
 }
 
 /// The default recipe for `object` with its confidence network trained on
@@ -807,32 +970,22 @@ pub fn cached_roll_database(
     dir: Option<PathBuf>,
     search_deg: f64,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    if !(search_deg.is_finite() && (0.0..=180.0).contains(&search_deg)) {
-        return Err(EvalError::Input(format!(
-            "--roll-search-deg {search_deg} must be a finite number of degrees in [0, 180]"
-        )));
-    }
-    if search_deg == 0.0 {
-        return cached_database(object, dir);
-    }
-    let default = cached_database_path(object, dir, false);
-    let stem = default.file_stem().unwrap_or_default().to_string_lossy();
-    let path = default.with_file_name(format!("{stem}-roll{search_deg}.acchdb"));
-    let scenes = ConfidenceScenes {
-        roll_deg: search_deg,
-        search_deg,
-        imaging: false,
+    let recipe = Recipe {
+        roll_search_deg: search_deg,
+        ..Recipe::default()
     };
-    cached(object, path, "roll-searching ", scenes)
+    cached_recipe_database(object, dir, recipe)
 }
 
 /// The database of `object` cached at `path`, or trained with the default
-/// recipe and confidence `scenes` on first use and cached there.
-fn cached(
+/// recipe, confidence `scenes` and the training views lit from
+/// `light_directions` directions on first use and cached there.
+fn cached_with(
     object: &Arc<Object>,
     path: PathBuf,
     what: &str,
     scenes: ConfidenceScenes,
+    light_directions: usize,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
     let dir = path.parent().map(PathBuf::from).unwrap_or_default();
     if path.exists() {
@@ -849,6 +1002,7 @@ fn cached(
     let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
     let training = RenderedTraining {
         scenes,
+        light_directions,
         ..RenderedTraining::default()
     };
     let (db, choice) = train_object(object, &TrainConfig::default(), &training, confidence)?;
@@ -866,6 +1020,51 @@ fn cached(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_recipe_has_a_file_of_its_own_and_the_old_names_stay() {
+        let object = Object::builtin("can").unwrap();
+        let default = cached_database_path(&object, Some("/c".into()), false);
+        let stem = default.file_stem().unwrap().to_string_lossy().into_owned();
+        let name = |r: Recipe| format!("{stem}{}.acchdb", r.suffix());
+        let r = Recipe::default();
+        assert_eq!(name(r), default.file_name().unwrap().to_string_lossy());
+        let imaging = Recipe { imaging: true, ..r };
+        assert_eq!(
+            name(imaging),
+            cached_database_path(&object, Some("/c".into()), true)
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+        );
+        let roll = Recipe {
+            roll_search_deg: 45.0,
+            ..r
+        };
+        assert_eq!(name(roll), format!("{stem}-roll45.acchdb"));
+        let both = Recipe {
+            light_directions: 8,
+            ..roll
+        };
+        assert_eq!(name(both), format!("{stem}-roll45-lights8.acchdb"));
+        assert!(both.check().is_ok());
+        for bad in [
+            Recipe {
+                light_directions: 0,
+                ..r
+            },
+            Recipe {
+                light_directions: 8,
+                ..imaging
+            },
+            Recipe {
+                roll_search_deg: f64::NAN,
+                ..r
+            },
+        ] {
+            assert!(matches!(bad.check(), Err(EvalError::Input(_))), "{bad:?}");
+        }
+    }
 
     #[test]
     fn validation_training_and_test_seeds_never_meet() {

@@ -50,6 +50,11 @@ pub struct PipelineConfig {
     pub object_threads: usize,
     /// Where default databases are cached.
     pub cache_dir: Option<PathBuf>,
+    /// The cached databases trained with their views lit from this many
+    /// directions around the vertical (1: the training light's only; 8
+    /// holds light from any side, docs/accuracy.md). Not for `db` or
+    /// database files, which are used as they are.
+    pub light_directions: usize,
     /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv),
     /// `mcap:FILE` (replays a recording of `acch run --record`),
     /// `gst:PIPELINE` (a GStreamer pipeline as gst-launch-1.0 writes it,
@@ -214,6 +219,7 @@ impl Default for PipelineConfig {
             objects_in_view: 0,
             object_threads: 0,
             cache_dir: None,
+            light_directions: 1,
             source: "synthetic".into(),
             camera_info: None,
             mesh: None,
@@ -317,6 +323,13 @@ impl PipelineConfig {
                     "must be a positive number of metres up to 1000",
                 ));
             }
+        }
+        if !(1..=64).contains(&self.light_directions) {
+            return Err(bad(
+                "light_directions",
+                &self.light_directions,
+                "must be 1 (the training light's) to 64",
+            ));
         }
         let [lo, hi] = self.elevation_deg;
         if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= 90.0) {

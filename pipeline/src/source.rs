@@ -504,6 +504,7 @@ impl Source {
                         },
                         textures: c.textures,
                         occlusion: 0.0,
+                        light_azimuth_deg: 0.0,
                     },
                     c.seed,
                 );

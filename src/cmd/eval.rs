@@ -147,6 +147,12 @@ pub struct EvalArgs {
     /// the default ones.
     #[arg(long)]
     confidence_imaging: bool,
+    /// table2, robust, multi: the databases trained with their views lit
+    /// from K directions around the vertical and half the confidence scenes
+    /// from a turned one (`acch train --light-directions K`), trained on
+    /// first use and cached apart from the default ones (1: the default).
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    light_directions: u32,
     /// robust: plot the failure rate against each family's level (PNG).
     #[arg(long, value_name = "FILE.png")]
     plot: Option<PathBuf>,
@@ -225,6 +231,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 n: args.n.unwrap_or(50),
                 seed: args.seed,
                 textures: args.textures,
+                light_directions: args.light_directions as usize,
             };
             let report = table2::table2(object, &options, &config)?;
             report.print();
@@ -272,8 +279,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
         ),
         Protocol::Robust => {
             let options = robust_options(&args, 20);
-            let (db, _) =
-                acch_eval::train::cached_database_with(&object, None, args.confidence_imaging)?;
+            let (db, _) = robust_database(&args, &object)?;
             let report = robust::robust(object, &db, &options)?;
             report.print();
             if let Some(path) = &args.json {
@@ -297,10 +303,26 @@ fn robust_options(args: &EvalArgs, default_n: usize) -> robust::RobustOptions {
         families: args.families.clone(),
         database: if args.confidence_imaging {
             "imaging-aware"
+        } else if args.light_directions > 1 {
+            "light-tolerant"
         } else {
             "default"
         },
     }
+}
+
+/// The database the robust protocol measures for `object`: the default,
+/// the imaging-aware or the light-tolerant one (cached).
+fn robust_database(
+    args: &EvalArgs,
+    object: &Arc<acch_capture::Object>,
+) -> Result<(acch_core::ViewDatabase, std::path::PathBuf), acch_eval::EvalError> {
+    let recipe = acch_eval::train::Recipe {
+        imaging: args.confidence_imaging,
+        light_directions: args.light_directions as usize,
+        ..Default::default()
+    };
+    acch_eval::train::cached_recipe_database(object, None, recipe)
 }
 
 /// `acch eval --protocol robust --objects LIST`.
@@ -313,9 +335,7 @@ fn run_population(args: &EvalArgs, spec: &str) -> Result<()> {
         _ => bail!("--objects is measured by --protocol robust and multi only"),
     }
     let options = robust_options(args, 4);
-    let database = |o: &Arc<acch_capture::Object>| {
-        acch_eval::train::cached_database_with(o, None, args.confidence_imaging).map(|(db, _)| db)
-    };
+    let database = |o: &Arc<acch_capture::Object>| robust_database(args, o).map(|(db, _)| db);
     let report = robust::robust_population(&objects, &database, &options)?;
     report.print();
     if let Some(path) = &args.json {
@@ -345,10 +365,14 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
     let databases = objects
         .iter()
         .map(|o| {
-            let deg = args
-                .roll_search_deg
-                .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG);
-            acch_eval::train::cached_roll_database(o, None, deg).map(|(db, _)| db)
+            let recipe = acch_eval::train::Recipe {
+                roll_search_deg: args
+                    .roll_search_deg
+                    .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG),
+                light_directions: args.light_directions as usize,
+                ..Default::default()
+            };
+            acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)
         })
         .collect::<Result<Vec<_>, _>>()?;
     let report = multi::multi(objects, &databases, &options)?;

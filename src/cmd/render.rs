@@ -138,6 +138,16 @@ pub struct RenderArgs {
         allow_negative_numbers = true
     )]
     occlusion: f32,
+    /// Degrees the light is turned about the vertical from the training
+    /// light's direction: the object lit from another side (0: as the
+    /// training views are lit; 180: from the opposite side).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    light_azimuth_deg: f32,
 
     /// Image width in pixels.
     #[arg(long, value_name = "PX", default_value_t = 640)]
@@ -227,6 +237,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ("--colour-temp-k", args.colour_temp_k, 1000.0..=15000.0),
         ("--vignetting", args.vignetting, 0.0..=1.0),
         ("--occlusion", args.occlusion, 0.0..=1.0),
+        (
+            "--light-azimuth-deg",
+            args.light_azimuth_deg,
+            -360.0..=360.0,
+        ),
     ] {
         if !(v.is_finite() && range.contains(&v)) {
             bail!(
@@ -285,6 +300,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         textures: args.textures,
         occlusion: args.occlusion,
+        light_azimuth_deg: args.light_azimuth_deg,
     };
     let start = Instant::now();
     let renderer = Renderer::new(config, args.seed);
@@ -458,6 +474,7 @@ fn write_truth(
                     "vignetting": args.vignetting,
                     "jpeg_quality": args.jpeg_quality,
                     "occlusion": args.occlusion,
+                    "light_azimuth_deg": args.light_azimuth_deg,
                 },
             });
             serde_json::to_writer(&mut w, &line)?;

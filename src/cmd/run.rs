@@ -40,6 +40,13 @@ pub struct RunArgs {
     /// Where trained default databases are cached.
     #[arg(long, env = "ACCH_CACHE_DIR", value_name = "DIR")]
     pub(crate) cache_dir: Option<PathBuf>,
+    /// Use (and on first use train) the databases whose views are lit
+    /// from K directions around the vertical: a room's light does not come
+    /// from where the training light did (8 holds it from any side;
+    /// docs/accuracy.md, "Light from another side"). Default 1, or the
+    /// configuration's.
+    #[arg(long, value_name = "K")]
+    pub(crate) light_directions: Option<usize>,
     /// Background of the simulated scene: plain, A, B, C, clutter, clutter-similar.
     #[arg(long)]
     pub(crate) background: Option<Background>,
@@ -227,6 +234,9 @@ impl RunArgs {
         if let Some(n) = self.objects_in_view {
             cfg.objects_in_view = n;
         }
+        if let Some(k) = self.light_directions {
+            cfg.light_directions = k;
+        }
         cfg.validate().context("invalid pipeline configuration")?;
         if !cfg.objects.is_empty() {
             if cfg.object_dbs.is_empty() {
@@ -237,7 +247,11 @@ impl RunArgs {
         if cfg.db.is_none() {
             let object = std::sync::Arc::new(cfg.scene_object()?);
             let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
-            let (_, path) = acch_eval::train::cached_database(&object, cache)?;
+            let recipe = acch_eval::train::Recipe {
+                light_directions: cfg.light_directions,
+                ..Default::default()
+            };
+            let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, recipe)?;
             cfg.db = Some(path);
         }
         Ok(cfg)
@@ -257,8 +271,12 @@ impl RunArgs {
                 ObjectEntry::Database(path) => Ok(path),
                 other => {
                     let object = std::sync::Arc::new(other.object(up, cfg.mesh_unit_m)?);
-                    let deg = acch_eval::multi::OFF_AXIS_ROLL_SEARCH_DEG;
-                    Ok(acch_eval::train::cached_roll_database(&object, cache.clone(), deg)?.1)
+                    let recipe = acch_eval::train::Recipe {
+                        roll_search_deg: acch_eval::multi::OFF_AXIS_ROLL_SEARCH_DEG,
+                        light_directions: cfg.light_directions,
+                        ..Default::default()
+                    };
+                    Ok(acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?.1)
                 }
             })
             .collect()

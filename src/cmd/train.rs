@@ -64,6 +64,13 @@ pub struct TrainArgs {
     /// "A confidence that knows when it is out of its depth").
     #[arg(long)]
     confidence_imaging: bool,
+    /// Light the training views from this many directions around the
+    /// vertical, evenly spaced from the training light's, each view's
+    /// histogram the mean over them, and half the confidence scenes from a
+    /// turned direction: for a room whose light does not come from where
+    /// training's did (docs/accuracy.md, "Light from another side").
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    light_directions: u32,
     /// Confidence network input: the four response features, the whole
     /// response, or the features and the best match value (grounded).
     #[arg(long, value_enum, default_value = "auto")]
@@ -158,7 +165,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
                     roll_deg: confidence_roll_deg,
                     search_deg: args.roll_search_deg,
                     imaging: args.confidence_imaging,
+                    light_turned: args.light_directions > 1,
                 },
+                light_directions: args.light_directions as usize,
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
             let (mut db, choice) = train::train_object(&object, &config, &training, confidence)?;

@@ -3,7 +3,7 @@
 use std::cell::RefCell;
 use std::sync::Arc;
 
-use glam::DAffine3;
+use glam::{DAffine3, DMat3, DVec3};
 use image::{GrayImage, RgbImage};
 use serde::{Deserialize, Serialize};
 
@@ -35,6 +35,11 @@ pub struct SceneConfig {
     /// drawn from the frame seed; the mask keeps only what stays visible.
     /// 0 = none.
     pub occlusion: f32,
+    /// Degrees the light is turned about the world's vertical from the
+    /// training light's direction (the object lit from another side, as
+    /// by a room's lamp once the object is turned on the table); 0 = the
+    /// training light.
+    pub light_azimuth_deg: f32,
 }
 
 impl SceneConfig {
@@ -47,6 +52,7 @@ impl SceneConfig {
             effects: Effects::default(),
             textures: TextureSet::default(),
             occlusion: 0.0,
+            light_azimuth_deg: 0.0,
         }
     }
 
@@ -159,6 +165,12 @@ impl Renderer {
         }
     }
 
+    /// Turns the light about the vertical (see
+    /// [`SceneConfig::light_azimuth_deg`]); the scene is otherwise the same.
+    pub fn set_light_azimuth_deg(&mut self, deg: f32) {
+        self.config.light_azimuth_deg = deg;
+    }
+
     /// The scene configuration.
     pub fn config(&self) -> &SceneConfig {
         &self.config
@@ -167,6 +179,14 @@ impl Renderer {
     /// Number of distractor objects on the table.
     pub fn distractor_count(&self) -> usize {
         self.distractors.len()
+    }
+
+    /// The light's direction in the world: the training light's, turned
+    /// by `light_azimuth_deg` about the vertical.
+    fn light_world(&self) -> DVec3 {
+        let turn = f64::from(self.config.light_azimuth_deg);
+        let turn = if turn.is_finite() { turn } else { 0.0 };
+        DMat3::from_rotation_z(turn.to_radians()) * light_world()
     }
 
     /// The height of the table plane (the target's lowest z).
@@ -214,7 +234,7 @@ impl Renderer {
                 &k,
                 self.table_z(),
             );
-            let light_cam = camera_from_world.matrix3 * light_world();
+            let light_cam = camera_from_world.matrix3 * self.light_world();
             draw_object(
                 &mut frame,
                 &self.config.object,

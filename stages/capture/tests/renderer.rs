@@ -700,3 +700,52 @@ fn roll_90_turns_the_render_counter_clockwise() {
         "mean abs diff: counter-clockwise {right}, clockwise {wrong}"
     );
 }
+
+#[test]
+fn a_turned_light_shades_the_object_otherwise_and_moves_nothing() {
+    let object = Arc::new(Object::builtin("fruitbox").expect("builtin object"));
+    let lit = |deg: f32| {
+        let mut config = SceneConfig::new(object.clone(), Background::default());
+        config.light_azimuth_deg = deg;
+        Renderer::new(config, 1).render(&view(60.0, 30.0), 0)
+    };
+    let (base, turned, full_turn) = (lit(0.0), lit(180.0), lit(360.0));
+    assert_eq!(
+        base.mask, turned.mask,
+        "the light moves no pixel of the object"
+    );
+    let on_object = |r: &acch_capture::Rendered| -> Vec<[u8; 3]> {
+        r.image
+            .pixels()
+            .zip(base.mask.pixels())
+            .filter(|(_, m)| m[0] != 0)
+            .map(|(p, _)| p.0)
+            .collect()
+    };
+    let (a, b) = (on_object(&base), on_object(&turned));
+    let changed = a.iter().zip(&b).filter(|(x, y)| x != y).count();
+    assert!(
+        changed * 4 > a.len(),
+        "{changed} of {} object pixels changed",
+        a.len()
+    );
+    // Outside the object (the plain table, lit from straight above as
+    // much as before) nothing changes.
+    for ((p, q), m) in base
+        .image
+        .pixels()
+        .zip(turned.image.pixels())
+        .zip(base.mask.pixels())
+    {
+        if m[0] == 0 {
+            assert_eq!(p, q);
+        }
+    }
+    // A whole turn is the training light again (up to rounding).
+    let same = on_object(&full_turn)
+        .iter()
+        .zip(&a)
+        .filter(|(x, y)| x.iter().zip(y.iter()).all(|(u, v)| u.abs_diff(*v) <= 1))
+        .count();
+    assert_eq!(same, a.len());
+}

@@ -147,7 +147,9 @@ pub fn mask_bbox(mask: &[u8], width: u32, height: u32) -> Option<Rect> {
 }
 
 /// Trains a database from labelled views. Views are stored sorted by
-/// (θ, φ), so the response reads θ-slice by θ-slice.
+/// (θ, φ), so the response reads θ-slice by θ-slice; views of one (θ, φ)
+/// (the same pose under several lights, say) make one view, the mean of
+/// their histograms, sizes and offsets.
 pub fn build_database(
     object: &str,
     train_distance_m: f32,
@@ -198,28 +200,46 @@ pub fn build_database(
     });
     let mut index = IndexImage::default();
     let mut hist = vec![0.0; params.len()];
-    for i in order {
-        let v = &views[i];
-        let Some(roi) = mask_bbox(v.mask, v.width, v.height) else {
+    let mut mean = vec![0.0; params.len()];
+    let pose = |i: usize| (views[i].theta_deg, views[i].phi_deg.rem_euclid(360.0));
+    for group in order.chunk_by(|&a, &b| pose(a) == pose(b)) {
+        mean.fill(0.0);
+        let (mut n, mut size_px, mut offset) = (0usize, 0.0f32, [0.0f32; 2]);
+        for &i in group {
+            let v = &views[i];
+            let Some(roi) = mask_bbox(v.mask, v.width, v.height) else {
+                continue;
+            };
+            db.palette
+                .quantise_into(v.rgb, v.width, v.height, &mut index);
+            extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
+            mean.iter_mut().zip(&hist).for_each(|(m, h)| *m += h);
+            let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
+            // Sizes and offsets are kept at the training scale.
+            size_px += area.sqrt() / v.scale;
+            if let Some(c) = v.centre_px {
+                let (x, y) = roi.centre();
+                offset[0] += (c[0] - x) / v.scale;
+                offset[1] += (c[1] - y) / v.scale;
+            }
+            n += 1;
+        }
+        if n == 0 {
             continue;
-        };
-        db.palette
-            .quantise_into(v.rgb, v.width, v.height, &mut index);
-        extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
-        let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
-        let centre_offset_px = v.centre_px.map_or([0.0; 2], |c| {
-            let (x, y) = roi.centre();
-            [(c[0] - x) / v.scale, (c[1] - y) / v.scale]
-        });
+        }
+        let k = n as f32;
+        if n > 1 {
+            mean.iter_mut().for_each(|m| *m /= k);
+        }
+        let (theta_deg, phi_deg) = pose(group[0]);
         db.push_view(
             View {
-                theta_deg: v.theta_deg,
-                phi_deg: v.phi_deg.rem_euclid(360.0),
-                // Sizes and offsets are kept at the training scale.
-                size_px: area.sqrt() / v.scale,
-                centre_offset_px,
+                theta_deg,
+                phi_deg,
+                size_px: size_px / k,
+                centre_offset_px: [offset[0] / k, offset[1] / k],
             },
-            &hist,
+            &mean,
         );
     }
     if db.views().is_empty() {
@@ -231,6 +251,47 @@ pub fn build_database(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 64 x 64 view of stripes whose colours depend on `salt`.
+    fn striped(salt: u8) -> Vec<u8> {
+        (0..64 * 64)
+            .flat_map(|i| {
+                let (x, y) = (i % 64, i / 64);
+                let band = ((x / 8 + y / 16) % 4) as u8;
+                [
+                    band * 60 + salt,
+                    255 - band * 50,
+                    (band * 90).wrapping_add(salt),
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn views_of_one_pose_make_one_view_the_mean_of_theirs() {
+        let (a, b) = (striped(0), striped(40));
+        let mask = vec![255u8; 64 * 64];
+        let config = TrainConfig {
+            colours: 8,
+            ..TrainConfig::default()
+        };
+        let view = |rgb, phi| LabelledView::new(rgb, &mask, (64, 64), (45.0, phi), 1.0);
+        // The same pixels either way, so the same palette.
+        let apart = build_database("o", 1.0, &[view(&a, 0.0), view(&b, 10.0)], &config).unwrap();
+        let one = build_database("o", 1.0, &[view(&a, 0.0), view(&b, 0.0)], &config).unwrap();
+        assert_eq!(apart.palette, one.palette);
+        assert_eq!((apart.views().len(), one.views().len()), (2, 1));
+        let (ha, hb) = (apart.histogram(0), apart.histogram(1));
+        assert!(ha != hb, "the two lights give different histograms");
+        for ((m, x), y) in one.histogram(0).iter().zip(ha).zip(hb) {
+            assert!(
+                (m - (x + y) / 2.0).abs() <= 1e-6 * (x + y).max(1.0),
+                "{m} {x} {y}"
+            );
+        }
+        let size = |db: &ViewDatabase, i: usize| db.views()[i].size_px;
+        assert!((size(&one, 0) - (size(&apart, 0) + size(&apart, 1)) / 2.0).abs() < 1e-4);
+    }
 
     #[test]
     fn bbox_of_mask() {
