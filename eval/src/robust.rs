@@ -647,8 +647,9 @@ mod tests {
         let base = SceneConfig::new(object, "A".parse().unwrap());
         for f in &FAMILIES {
             let changed = perturbed(base.clone(), Some((f.name, f.levels[0])));
-            let scene_changed =
-                changed.effects != Effects::default() || changed.occlusion != base.occlusion;
+            let scene_changed = changed.effects != Effects::default()
+                || changed.occlusion != base.occlusion
+                || changed.light_azimuth_deg != base.light_azimuth_deg;
             assert_eq!(scene_changed, f.name != "distance", "{}", f.name);
         }
     }
