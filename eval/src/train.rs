@@ -361,28 +361,10 @@ fn render_imaged(
     name: &str,
 ) -> Vec<Rendered> {
     let base = SceneConfig::new(object.clone(), background).with_textures(TextureSet::Training);
-    let mut renderers = vec![Renderer::new(base.clone(), seed)];
-    renderers.extend(
-        (0..IMAGING_CONDITIONS)
-            .map(|k| Renderer::new(imaging_condition(base.clone(), seed, k), seed)),
-    );
-    let bar = protocol::progress(views.len() as u64, name);
-    let out = views
-        .par_iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let renderer = if i % 2 == 0 {
-                &renderers[0]
-            } else {
-                &renderers[1 + (i / 2) % IMAGING_CONDITIONS]
-            };
-            let r = renderer.render(v, acch_capture::frame_seed(seed, i));
-            bar.inc(1);
-            r
-        })
+    let imaged: Vec<Renderer> = (0..IMAGING_CONDITIONS)
+        .map(|k| Renderer::new(imaging_condition(base.clone(), seed, k), seed))
         .collect();
-    bar.finish_and_clear();
-    out
+    render_alternating(&Renderer::new(base, seed), &imaged, views, seed, name)
 }
 
 /// Light directions the turned confidence scenes are drawn among.
@@ -400,23 +382,35 @@ fn render_light_turned(
 ) -> Vec<Rendered> {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x006c_6967_6874);
+    let lit = || protocol::renderer(object.clone(), background, TextureSet::Training, seed);
     let turned: Vec<Renderer> = (0..TURNED_LIGHTS)
         .map(|_| {
-            let mut r = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+            let mut r = lit();
             r.set_light_azimuth_deg(rng.random_range(20.0..340.0));
             r
         })
         .collect();
-    let lit = protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+    render_alternating(&lit(), &turned, views, seed, name)
+}
+
+/// `views` rendered in parallel with a progress bar: the even ones by
+/// `even`, the odd ones by `odd` in turn.
+fn render_alternating(
+    even: &Renderer,
+    odd: &[Renderer],
+    views: &[ViewPose],
+    seed: u64,
+    name: &str,
+) -> Vec<Rendered> {
     let bar = protocol::progress(views.len() as u64, name);
     let out = views
         .par_iter()
         .enumerate()
         .map(|(i, v)| {
             let renderer = if i % 2 == 0 {
-                &lit
+                even
             } else {
-                &turned[(i / 2) % TURNED_LIGHTS]
+                &odd[(i / 2) % odd.len()]
             };
             let r = renderer.render(v, acch_capture::frame_seed(seed, i));
             bar.inc(1);
