@@ -345,6 +345,19 @@ impl HistogramExtractor {
         self.linear_width = 0;
     }
 
+    /// Pixel pairs counted per pixel of object area measured at the
+    /// training scale, at `scale` (the number of annulus offsets times the
+    /// object's area there over the reference pixels' stride squared): a
+    /// view of `n` pairs at scale 1 has about `n * rate(scale) / rate(1)`
+    /// at `scale`, whole. The stride is rounded to whole pixels, so the
+    /// count does not follow the scale smoothly.
+    pub fn pair_rate(&mut self, scale: f32) -> f32 {
+        let scale = usable_scale(scale);
+        self.set_scale(scale);
+        let stride = self.stride as f32;
+        self.offsets.len() as f32 * scale * scale / (stride * stride)
+    }
+
     /// Computes the normalised histogram of the pixels of `roi` whose mask
     /// byte is non-zero (all of them without a mask) into `out`
     /// (`params.len()` values summing to 1, or all 0 when no pair was
@@ -363,12 +376,7 @@ impl HistogramExtractor {
         if let Some(m) = mask {
             assert_eq!(m.len(), image.data.len(), "mask size");
         }
-        let scale = if scale.is_finite() && scale > 0.0 {
-            scale.clamp(0.05, 20.0)
-        } else {
-            1.0
-        };
-        self.set_scale(scale);
+        self.set_scale(usable_scale(scale));
         let roi = roi.clamp_to(image.width, image.height);
         let (w, h, pad) = (roi.width as usize, roi.height as usize, self.pad);
         let pw = w + 2 * pad;
@@ -450,6 +458,16 @@ impl HistogramExtractor {
     }
 }
 
+/// The scale an extractor works at for `scale`: within 0.05-20, 1 for
+/// what is not a positive number.
+fn usable_scale(scale: f32) -> f32 {
+    if scale.is_finite() && scale > 0.0 {
+        scale.clamp(0.05, 20.0)
+    } else {
+        1.0
+    }
+}
+
 /// The ACCH `h` (`bins` orientations x `colours` x `colours`) of the same
 /// view with the image turned `shift` orientation bins counter-clockwise
 /// (`shift` x 180° / `bins`), into `out`: bin d moves to d + shift, and a
@@ -508,6 +526,26 @@ pub fn intersection(h1: &[f32], h2: &[f32]) -> f32 {
         }
     }
     let tail: f32 = r1.iter().zip(r2).map(|(a, b)| a.min(*b)).sum();
+    acc.iter().sum::<f32>() + tail
+}
+
+/// Intersection of the query `h` with the view `t` taken `k` times,
+/// sum of min(h, k t): for normalised histograms of a query of `q` pairs
+/// and a view of `n`, `k = n / q` compares their pair counts, so the share
+/// of the query's pairs the whole view holds (a visible part of the right
+/// view scores 1, the view is not diluted by the pairs an occluder hid).
+pub fn scaled_intersection(h: &[f32], t: &[f32], k: f32) -> f32 {
+    assert_eq!(h.len(), t.len(), "histogram lengths differ");
+    let mut acc = [0f32; 8];
+    let (c1, c2) = (h.chunks_exact(8), t.chunks_exact(8));
+    let (r1, r2) = (c1.remainder(), c2.remainder());
+    for (a, b) in c1.zip(c2) {
+        for i in 0..8 {
+            let kb = k * b[i];
+            acc[i] += if a[i] < kb { a[i] } else { kb };
+        }
+    }
+    let tail: f32 = r1.iter().zip(r2).map(|(a, b)| a.min(k * b)).sum();
     acc.iter().sum::<f32>() + tail
 }
 

@@ -15,6 +15,6 @@ pub mod palette;
 pub use database::{DbError, View, ViewDatabase};
 pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
-    match_value, roll_acch, roll_invariant,
+    match_value, roll_acch, roll_invariant, scaled_intersection,
 };
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};

@@ -200,11 +200,13 @@ pub fn build_database(
     });
     let mut index = IndexImage::default();
     let mut hist = vec![0.0; params.len()];
+    let rate_at_training = extractor.pair_rate(1.0);
+    let mut view_pairs = Vec::with_capacity(views.len());
     let mut mean = vec![0.0; params.len()];
     let pose = |i: usize| (views[i].theta_deg, views[i].phi_deg.rem_euclid(360.0));
     for group in order.chunk_by(|&a, &b| pose(a) == pose(b)) {
         mean.fill(0.0);
-        let (mut n, mut size_px, mut offset) = (0usize, 0.0f32, [0.0f32; 2]);
+        let (mut n, mut size_px, mut offset, mut pairs) = (0usize, 0.0f32, [0.0f32; 2], 0.0f32);
         for &i in group {
             let v = &views[i];
             let Some(roi) = mask_bbox(v.mask, v.width, v.height) else {
@@ -212,8 +214,10 @@ pub fn build_database(
             };
             db.palette
                 .quantise_into(v.rgb, v.width, v.height, &mut index);
-            extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
+            let found = extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
             mean.iter_mut().zip(&hist).for_each(|(m, h)| *m += h);
+            // Kept at the training scale, as the sizes.
+            pairs += found as f32 * rate_at_training / extractor.pair_rate(v.scale);
             let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
             // Sizes and offsets are kept at the training scale.
             size_px += area.sqrt() / v.scale;
@@ -241,10 +245,12 @@ pub fn build_database(
             },
             &mean,
         );
+        view_pairs.push(pairs / k);
     }
     if db.views().is_empty() {
         return Err(TrainError::NoViews);
     }
+    crate::store_view_pairs(&mut db, &view_pairs);
     Ok(db)
 }
 
