@@ -54,7 +54,9 @@ mod model;
 pub use counts::{ColourCounts, CountLayout, MAX_FEATURES, RegionCounts};
 pub use detector::{CellRect, Detection, Detector, HeatMap};
 pub use light::{CANDIDATES, COLOUR_TEMPERATURES_K, EXPOSURES, LightSearch, WEAK_SCORE_FRACTION};
-pub use model::{MODEL_VERSION, RecognitionError, RecognitionModel, RecognitionParams, SECTION};
+pub use model::{
+    ColourPeaks, MODEL_VERSION, RecognitionError, RecognitionModel, RecognitionParams, SECTION,
+};
 
 #[cfg(test)]
 mod tests {
@@ -365,6 +367,28 @@ mod tests {
         let m = model();
         let bytes = m.to_bytes();
         assert_eq!(RecognitionModel::from_bytes(&bytes).unwrap(), m);
+        // A model of version 1 has no colour peaks and reads as such.
+        let peaks = m
+            .colour_peaks
+            .as_ref()
+            .expect("a trained model has colour peaks");
+        assert!(
+            peaks.share.iter().all(|s| (s - 0.25).abs() < 0.03),
+            "{peaks:?}"
+        );
+        let freq: Vec<u8> = m.colour_freq.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let at = bytes.windows(freq.len()).position(|w| w == freq).unwrap() + freq.len();
+        let mut v1 = bytes.clone();
+        v1.drain(at..at + 8 * m.colours());
+        v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let old = RecognitionModel::from_bytes(&v1).unwrap();
+        assert_eq!(
+            old,
+            RecognitionModel {
+                colour_peaks: None,
+                ..m.clone()
+            }
+        );
         assert_eq!(
             RecognitionModel::from_bytes(b"PNG"),
             Err(RecognitionError::BadMagic)

@@ -10,6 +10,9 @@
 //!           found_fraction f32, cell_threshold f32, pixel_threshold f32,
 //!           smooth_radius u16, max_growth f32
 //! colours   u16 C, then C x f32 (mean share of object pixels per colour)
+//! peaks     (version 2) C x f32 largest share of a view's object pixels,
+//!           then C x f32 largest pixel count of a view at the training
+//!           scale, per colour
 //! pairs     u16 K, then K x (u8 a, u8 b, f32 pairs per object pixel)
 //! size_px   f32      median sqrt(mask area) at the training scale
 //! scores    f32 median training score, f32 threshold
@@ -22,7 +25,9 @@ use crate::Detector;
 
 const MAGIC: &[u8; 8] = b"ACCHREC\0";
 /// Version of the serialised model this build reads and writes.
-pub const MODEL_VERSION: u32 = 1;
+pub const MODEL_VERSION: u32 = 2;
+/// The older version this build still reads (no colour peaks).
+const MODEL_VERSION_NO_PEAKS: u32 = 1;
 /// Name of the view-database section that holds the model.
 pub const SECTION: &str = "recognition";
 
@@ -179,6 +184,11 @@ pub struct RecognitionModel {
     pub params: RecognitionParams,
     /// Mean share of object pixels per palette colour (length C).
     pub colour_freq: Vec<f32>,
+    /// Per colour, the most any one training view holds of it: its largest
+    /// share of a view's object pixels and its largest pixel count in a
+    /// view at the training scale (`None` in models of version 1). A region
+    /// holding more is partly something else.
+    pub colour_peaks: Option<ColourPeaks>,
     /// The K colour pairs (a <= b) and their mean count per object pixel.
     pub pairs: Vec<(u8, u8, f32)>,
     /// Median apparent size (sqrt of mask area) at the training scale, px.
@@ -187,6 +197,16 @@ pub struct RecognitionModel {
     pub train_score: f32,
     /// Least window score that counts as "found".
     pub threshold: f32,
+}
+
+/// The most of each palette colour one training view holds (see
+/// [`RecognitionModel::colour_peaks`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColourPeaks {
+    /// Largest share of a view's object pixels, per colour.
+    pub share: Vec<f32>,
+    /// Largest pixel count in a view at the training scale, per colour.
+    pub pixels: Vec<f32>,
 }
 
 impl RecognitionModel {
@@ -206,6 +226,10 @@ impl RecognitionModel {
         params.validate()?;
         let c = palette.len();
         let mut colour_sum = vec![0f64; c];
+        let mut peaks = ColourPeaks {
+            share: vec![0.0; c],
+            pixels: vec![0.0; c],
+        };
         let mut pair_sum = vec![0f64; 256 * 256];
         let mut sizes = Vec::with_capacity(views.len());
         let mut index = IndexImage::default();
@@ -251,6 +275,11 @@ impl RecognitionModel {
             for (s, &k) in colour_sum.iter_mut().zip(&colours) {
                 *s += k as f64 * inv;
             }
+            let at_training_scale = 1.0 / (v.scale * v.scale).max(f32::MIN_POSITIVE);
+            for (k, &n) in colours.iter().enumerate() {
+                peaks.share[k] = peaks.share[k].max((n as f64 * inv) as f32);
+                peaks.pixels[k] = peaks.pixels[k].max(n as f32 * at_training_scale);
+            }
             for (s, &k) in pair_sum.iter_mut().zip(&pairs) {
                 *s += k as f64 * inv;
             }
@@ -275,6 +304,7 @@ impl RecognitionModel {
         let mut model = RecognitionModel {
             params: *params,
             colour_freq,
+            colour_peaks: Some(peaks),
             pairs: candidates,
             size_px,
             train_score: 0.0,
@@ -324,6 +354,16 @@ impl RecognitionModel {
         for &f in &self.colour_freq {
             f32s(&mut out, f);
         }
+        let none = ColourPeaks {
+            share: vec![0.0; self.colour_freq.len()],
+            pixels: vec![0.0; self.colour_freq.len()],
+        };
+        // A model without peaks is written with zero peaks, read back as
+        // "no peaks" (a trained object holds some of its colours).
+        let peaks = self.colour_peaks.as_ref().unwrap_or(&none);
+        for &f in peaks.share.iter().chain(&peaks.pixels) {
+            f32s(&mut out, f);
+        }
         u16s(&mut out, self.pairs.len() as u16);
         for &(a, b, f) in &self.pairs {
             out.push(a);
@@ -344,7 +384,7 @@ impl RecognitionModel {
         }
         let mut r = Reader { bytes, pos: 8 };
         let version = r.u32("the version")?;
-        if version != MODEL_VERSION {
+        if version != MODEL_VERSION && version != MODEL_VERSION_NO_PEAKS {
             return Err(RecognitionError::UnsupportedVersion {
                 found: version,
                 supported: MODEL_VERSION,
@@ -374,6 +414,19 @@ impl RecognitionModel {
         let mut colour_freq = Vec::with_capacity(c);
         for _ in 0..c {
             colour_freq.push(r.nonneg("a colour share")?);
+        }
+        let mut colour_peaks = None;
+        if version == MODEL_VERSION {
+            let mut read = |what: &str| {
+                (0..c)
+                    .map(|_| r.nonneg(what))
+                    .collect::<Result<Vec<_>, _>>()
+            };
+            let share = read("a colour's peak share")?;
+            let pixels = read("a colour's peak pixel count")?;
+            if share.iter().chain(&pixels).any(|&v| v > 0.0) {
+                colour_peaks = Some(ColourPeaks { share, pixels });
+            }
         }
         let k = r.u16("the pair count")? as usize;
         if k > params.pairs as usize {
@@ -410,6 +463,7 @@ impl RecognitionModel {
         Ok(RecognitionModel {
             params,
             colour_freq,
+            colour_peaks,
             pairs,
             size_px,
             train_score,

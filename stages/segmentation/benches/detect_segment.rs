@@ -1,7 +1,8 @@
 //! Benchmarks of recognition and segmentation on a rendered 640x480 frame:
 //! quantisation (for reference, done once per frame by the caller), the
 //! per-cell counts and their integral (`prepare`), the window scan, the
-//! segmentation, and recognition + segmentation together, for the fruitbox
+//! segmentation (and without cutting foreign colours), and recognition +
+//! segmentation together, for the fruitbox
 //! on background A and among similar-colour clutter.
 //!
 //! `cargo bench -p acch-segmentation --bench detect_segment` runs them.
@@ -69,6 +70,18 @@ fn main() {
             b.iter(|| {
                 segmenter
                     .segment_detected(&index, &detector, black_box(&detection))
+                    .map(|s| s.area)
+            })
+        });
+        // What cutting foreign colours costs: the same model without the
+        // colour peaks it is decided by.
+        let mut blind = model.clone();
+        blind.colour_peaks = None;
+        group.bench_function("segment_without_colour_peaks", |b| {
+            b.iter(|| {
+                let counts = detector.region_counts(&detection)?;
+                segmenter
+                    .segment(&index, &counts, &blind, black_box(&detection))
                     .map(|s| s.area)
             })
         });
