@@ -174,6 +174,18 @@ fn nan_and_negative_command_line_values_name_the_option() {
             &["bench", "--objects", "fruitbox,can", "--known", "4"][..],
             "--known 4",
         ),
+        (
+            &[
+                "train",
+                "--object",
+                "fruitbox",
+                "--smoothing",
+                "gaussian",
+                "--out",
+                "x.acchdb",
+            ][..],
+            "unknown smoothing 'gaussian'",
+        ),
     ] {
         let out = acch(dir.path(), args);
         fails_naming(&out, what);

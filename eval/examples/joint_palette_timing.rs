@@ -38,6 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let renderer = MultiRenderer::new(MultiScene::new(objects, Background::B), 3)?;
     let frame = renderer.render(60.0, 30.0, 1)?.image;
     let rgb = frame.as_raw();
+    let (width, height) = frame.dimensions();
     let n = rgb.len() / 3;
     for k in 1..=palettes.len() {
         let ps = &palettes[..k];
@@ -68,7 +69,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..300 {
             let t = Instant::now();
             for (p, out) in ps.iter().zip(own.iter_mut()) {
-                p.quantise_into_slice(rgb, out);
+                p.quantise_into_slice(rgb, width, height, out);
             }
             t_own.push(t.elapsed().as_secs_f64() * 1e3);
             let t = Instant::now();

@@ -11,7 +11,7 @@ use acch_capture::{
     ViewSpec,
 };
 use acch_confidence::Kind;
-use acch_core::ViewDatabase;
+use acch_core::{Smoothing, ViewDatabase};
 use acch_pipeline::stages::{Confidence, Stages};
 use acch_pipeline::{Chain, StageSettings};
 use acch_pose::train::{LabelledView, TrainConfig, build_database};
@@ -837,6 +837,9 @@ pub struct Recipe {
     /// ([`RenderedTraining::light_directions`]) and half the confidence
     /// scenes lit from a turned one (1: the training light only).
     pub light_directions: usize,
+    /// Views and frames smoothed before quantisation
+    /// ([`acch_core::smooth`]; off: the paper's raw pixels).
+    pub smoothing: Smoothing,
 }
 
 impl Default for Recipe {
@@ -846,6 +849,7 @@ impl Default for Recipe {
             imaging: false,
             roll_search_deg: 0.0,
             light_directions: 1,
+            smoothing: Smoothing::Off,
         }
     }
 }
@@ -884,6 +888,9 @@ impl Recipe {
         if self.light_directions > 1 {
             s += &format!("-lights{}", self.light_directions);
         }
+        if self.smoothing != Smoothing::Off {
+            s += "-smoothed";
+        }
         s
     }
 
@@ -898,6 +905,9 @@ impl Recipe {
         }
         if self.light_directions > 1 {
             s += "light-tolerant ";
+        }
+        if self.smoothing != Smoothing::Off {
+            s += "smoothing ";
         }
         s
     }
@@ -920,10 +930,15 @@ pub fn cached_recipe_database(
         imaging: recipe.imaging,
         light_turned: recipe.light_directions > 1,
     };
+    let config = TrainConfig {
+        smoothing: recipe.smoothing,
+        ..TrainConfig::default()
+    };
     cached_with(
         object,
         path,
         &recipe.what(),
+        &config,
         scenes,
         recipe.light_directions,
     )
@@ -978,6 +993,7 @@ fn cached_with(
     object: &Arc<Object>,
     path: PathBuf,
     what: &str,
+    config: &TrainConfig,
     scenes: ConfidenceScenes,
     light_directions: usize,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
@@ -999,7 +1015,7 @@ fn cached_with(
         light_directions,
         ..RenderedTraining::default()
     };
-    let (db, choice) = train_object(object, &TrainConfig::default(), &training, confidence)?;
+    let (db, choice) = train_object(object, config, &training, confidence)?;
     if let Some(c) = choice {
         eprintln!("acch: {c}");
     }

@@ -2,7 +2,7 @@
 //! options.
 
 use acch_capture::{Object, UpAxis};
-use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling};
+use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling, Smoothing};
 use acch_pose::train::TrainConfig;
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -137,6 +137,14 @@ pub struct HistogramArgs {
     /// Seed of the palette's k-means.
     #[arg(long, default_value_t = 0)]
     pub palette_seed: u64,
+    /// Smoothing of views and frames before quantisation: `off` (the
+    /// paper's raw pixels) or `binomial` (5x5, sigma 1 px: a blurred or
+    /// noisy camera matches sharp training views; costs precision among
+    /// several known objects, docs/accuracy.md "A blurred camera"). In
+    /// eval's robust and multi protocols: databases trained so on first
+    /// use and cached apart from the default ones.
+    #[arg(long, default_value = "off", value_parser = parse_smoothing)]
+    pub smoothing: Smoothing,
 }
 
 impl HistogramArgs {
@@ -164,7 +172,18 @@ impl HistogramArgs {
             reject_quantile: Some(self.reject_quantile),
             params,
             seed: self.palette_seed,
+            smoothing: self.smoothing,
         })
+    }
+}
+
+fn parse_smoothing(s: &str) -> Result<Smoothing, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "binomial" => Ok(Smoothing::Binomial),
+        "off" => Ok(Smoothing::Off),
+        _ => Err(format!(
+            "unknown smoothing '{s}' (expected binomial or off)"
+        )),
     }
 }
 

@@ -305,6 +305,8 @@ fn robust_options(args: &EvalArgs, default_n: usize) -> robust::RobustOptions {
             "imaging-aware"
         } else if args.light_directions > 1 {
             "light-tolerant"
+        } else if args.histogram.smoothing != acch_core::Smoothing::Off {
+            "smoothing"
         } else {
             "default"
         },
@@ -320,6 +322,7 @@ fn robust_database(
     let recipe = acch_eval::train::Recipe {
         imaging: args.confidence_imaging,
         light_directions: args.light_directions as usize,
+        smoothing: args.histogram.smoothing,
         ..Default::default()
     };
     acch_eval::train::cached_recipe_database(object, None, recipe)
@@ -370,6 +373,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
                     .roll_search_deg
                     .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG),
                 light_directions: args.light_directions as usize,
+                smoothing: args.histogram.smoothing,
                 ..Default::default()
             };
             acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)

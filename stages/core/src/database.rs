@@ -14,6 +14,11 @@
 
 use crate::histogram::{HistogramKind, HistogramParams, OffsetSampling};
 use crate::palette::{ColourSpace, Palette};
+use crate::smooth::Smoothing;
+
+/// Name of the section that holds the palette's smoothing
+/// ([`Palette::smoothing`]); absent: none.
+pub const SMOOTHING_SECTION: &str = "palette-smoothing";
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -228,8 +233,18 @@ impl ViewDatabase {
         for &h in &self.histograms {
             put_f32(&mut p, h);
         }
-        put_u32(&mut p, self.sections.len() as u32);
-        for (name, data) in &self.sections {
+        // The palette's smoothing travels as a section of its own, written
+        // only when on, so that databases trained without it read as before.
+        let smoothing = self.palette.smoothing();
+        let smoothing_byte = [smoothing.id()];
+        let smoothing_section =
+            (smoothing != Smoothing::Off).then_some((SMOOTHING_SECTION, &smoothing_byte[..]));
+        put_u32(
+            &mut p,
+            (self.sections.len() + smoothing_section.is_some() as usize) as u32,
+        );
+        let named = self.sections.iter().map(|(n, d)| (n.as_str(), &d[..]));
+        for (name, data) in named.chain(smoothing_section) {
             put_str(&mut p, name);
             put_u64(&mut p, data.len() as u64);
             p.extend_from_slice(data);
@@ -494,6 +509,13 @@ fn parse_payload(payload: &[u8]) -> Result<ViewDatabase, String> {
     if r.pos != payload.len() {
         return Err(format!("{} unread bytes at the end", payload.len() - r.pos));
     }
+    let palette = match sections.remove(SMOOTHING_SECTION).as_deref() {
+        None => palette,
+        Some(&[id]) => palette.with_smoothing(
+            Smoothing::from_id(id).ok_or_else(|| format!("unknown palette smoothing {id}"))?,
+        ),
+        Some(_) => return Err("the palette smoothing section is not one byte".into()),
+    };
     Ok(ViewDatabase {
         object,
         palette,
@@ -559,6 +581,33 @@ mod tests {
         let mut r = vec![0.0; 2];
         back.response_into(back.histogram(1), &mut r);
         assert!((r[1] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_palette_smoothing_round_trips_and_is_off_in_older_files() {
+        let p = Path::new("db.acchdb");
+        let mut db = sample();
+        db.palette = db.palette.clone().with_smoothing(Smoothing::Binomial);
+        let bytes = db.to_bytes();
+        let back = ViewDatabase::from_bytes(&bytes, p).unwrap();
+        assert_eq!(back.palette.smoothing(), Smoothing::Binomial);
+        assert_eq!(back, db);
+        assert!(!back.sections.contains_key(SMOOTHING_SECTION));
+        // Without smoothing no section is written: the bytes of a file
+        // trained before it.
+        let plain = sample();
+        assert_eq!(plain.palette.smoothing(), Smoothing::Off);
+        assert_eq!(
+            plain.to_bytes().len() + SMOOTHING_SECTION.len() + 4 + 8 + 1,
+            bytes.len()
+        );
+        let mut unknown = sample();
+        unknown
+            .sections
+            .insert(SMOOTHING_SECTION.into(), vec![Smoothing::Binomial.id() + 7]);
+        let e = ViewDatabase::from_bytes(&unknown.to_bytes(), p).unwrap_err();
+        assert!(e.to_string().contains("smoothing"), "{e}");
+        assert!(e.to_string().contains("db.acchdb"), "{e}");
     }
 
     #[test]

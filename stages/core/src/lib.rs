@@ -11,6 +11,7 @@ pub mod database;
 pub mod histogram;
 pub mod light;
 pub mod palette;
+pub mod smooth;
 
 pub use database::{DbError, View, ViewDatabase};
 pub use histogram::{
@@ -18,3 +19,4 @@ pub use histogram::{
     match_value, roll_acch, roll_invariant, scaled_intersection,
 };
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};
+pub use smooth::Smoothing;

@@ -2,6 +2,7 @@
 //! and an O(1) lookup table from RGB to palette index.
 
 use crate::light::{linear_to_srgb, srgb_to_linear};
+use crate::smooth::{self, Smoothing};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -108,6 +109,7 @@ pub struct Palette {
     space: ColourSpace,
     centres: Vec<[f32; 3]>,
     reject_distance: f32,
+    smoothing: Smoothing,
     lut: Vec<u8>,
 }
 
@@ -117,6 +119,7 @@ impl PartialEq for Palette {
         self.space == other.space
             && self.centres == other.centres
             && self.reject_distance == other.reject_distance
+            && self.smoothing == other.smoothing
     }
 }
 
@@ -156,16 +159,7 @@ impl Palette {
         let centres = kmeans(&sample, colours, 25, &mut rng);
         let reject_distance = match reject_quantile {
             None => f32::INFINITY,
-            Some(q) => {
-                let mut d: Vec<f32> = sample
-                    .iter()
-                    .map(|p| nearest(&centres, p).1.sqrt())
-                    .collect();
-                d.sort_by(f32::total_cmp);
-                let q = q.clamp(0.0, 1.0);
-                let i = ((d.len() - 1) as f32 * q).round() as usize;
-                d[i] * 1.5
-            }
+            Some(q) => quantile_distance(&centres, &sample, q),
         };
         Self::from_centres(space, centres, reject_distance)
     }
@@ -187,6 +181,7 @@ impl Palette {
             space,
             centres,
             reject_distance,
+            smoothing: Smoothing::Off,
             lut: vec![NOT_OBJECT; LUT_SIDE * LUT_SIDE * LUT_SIDE],
         };
         palette.build_lut();
@@ -291,6 +286,19 @@ impl Palette {
             .collect()
     }
 
+    /// The same palette quantising frames smoothed by `smoothing` first
+    /// (the palette's colours must have been learnt from pixels smoothed
+    /// alike, [`crate::smooth`]).
+    pub fn with_smoothing(mut self, smoothing: Smoothing) -> Self {
+        self.smoothing = smoothing;
+        self
+    }
+
+    /// How frames are smoothed before they are quantised.
+    pub fn smoothing(&self) -> Smoothing {
+        self.smoothing
+    }
+
     /// Quantises a packed RGB frame (`width * height * 3` bytes) into `out`,
     /// reusing its buffer.
     pub fn quantise_into(&self, rgb: &[u8], width: u32, height: u32, out: &mut IndexImage) {
@@ -303,22 +311,29 @@ impl Palette {
         out.width = width;
         out.height = height;
         out.data.resize(n, NOT_OBJECT);
-        for (dst, px) in out.data.iter_mut().zip(rgb.chunks_exact(3)) {
-            *dst = self.index([px[0], px[1], px[2]]);
-        }
+        self.quantise_into_slice(rgb, width, height, &mut out.data);
     }
 
-    /// Quantises a packed RGB frame into `out`, one index per pixel (for
-    /// example straight into a shared-memory sample); panics if the
-    /// lengths do not match.
-    pub fn quantise_into_slice(&self, rgb: &[u8], out: &mut [u8]) {
+    /// Quantises a packed RGB frame of `width x height` into `out`, one
+    /// index per pixel (for example straight into a shared-memory sample);
+    /// panics if the lengths do not match.
+    pub fn quantise_into_slice(&self, rgb: &[u8], width: u32, height: u32, out: &mut [u8]) {
         assert_eq!(
-            rgb.len(),
-            out.len() * 3,
-            "RGB buffer does not match the index buffer"
+            (rgb.len(), out.len()),
+            (
+                width as usize * height as usize * 3,
+                width as usize * height as usize
+            ),
+            "RGB or index buffer does not match {width}x{height}"
         );
-        for (dst, px) in out.iter_mut().zip(rgb.chunks_exact(3)) {
-            *dst = self.index([px[0], px[1], px[2]]);
+        let lookup = |rgb: &[u8], out: &mut [u8]| {
+            for (dst, px) in out.iter_mut().zip(rgb.chunks_exact(3)) {
+                *dst = self.index([px[0], px[1], px[2]]);
+            }
+        };
+        match self.smoothing {
+            Smoothing::Off => lookup(rgb, out),
+            Smoothing::Binomial => smooth::with_smoothed(rgb, width, height, |s| lookup(s, out)),
         }
     }
 
@@ -402,6 +417,18 @@ impl<'a> From<&'a IndexImage> for IndexView<'a> {
 fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}
+
+/// 1.5 times the `quantile` of `sample`'s distances to their nearest centre.
+fn quantile_distance(centres: &[[f32; 3]], sample: &[[f32; 3]], quantile: f32) -> f32 {
+    let mut d: Vec<f32> = sample
+        .iter()
+        .map(|p| nearest(centres, p).1.sqrt())
+        .collect();
+    d.sort_by(f32::total_cmp);
+    let q = quantile.clamp(0.0, 1.0);
+    let i = ((d.len() - 1) as f32 * q).round() as usize;
+    d[i] * 1.5
 }
 
 fn nearest(centres: &[[f32; 3]], p: &[f32; 3]) -> (usize, f32) {
@@ -685,5 +712,39 @@ mod tests {
         .unwrap();
         let img = p.quantise(&[255, 0, 0, 0, 0, 255, 250, 5, 5], 3, 1);
         assert_eq!(img.data, vec![0, 1, 0]);
+    }
+
+    #[test]
+    fn a_smoothing_palette_quantises_the_smoothed_frame() {
+        let pixels = [[255u8, 0, 0], [0, 0, 255], [128, 0, 128]];
+        let centres = pixels
+            .iter()
+            .map(|&c| ColourSpace::Rgb.convert(c))
+            .collect();
+        let raw = Palette::from_centres(ColourSpace::Rgb, centres, 60.0).unwrap();
+        let smoothing = raw.clone().with_smoothing(Smoothing::Binomial);
+        assert_ne!(raw, smoothing);
+        // Red stripes on blue, 2 px wide: smoothed, the stripes' edges and
+        // narrow gaps turn purple.
+        let (w, h) = (12u32, 6u32);
+        let rgb: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                if (i % w) / 2 % 2 == 0 {
+                    [255, 0, 0]
+                } else {
+                    [0, 0, 255]
+                }
+            })
+            .collect();
+        let (mut rows, mut smoothed) = (Vec::new(), Vec::new());
+        smooth::binomial_into(&rgb, w as usize, h as usize, &mut rows, &mut smoothed);
+        let expected = raw.quantise(&smoothed, w, h);
+        let got = smoothing.quantise(&rgb, w, h);
+        assert_eq!(got, expected);
+        assert_ne!(got, raw.quantise(&rgb, w, h));
+        assert!(got.data.contains(&2), "{:?}", got.data);
+        let mut slice = vec![0u8; (w * h) as usize];
+        smoothing.quantise_into_slice(&rgb, w, h, &mut slice);
+        assert_eq!(slice, got.data);
     }
 }

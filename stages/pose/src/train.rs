@@ -2,7 +2,8 @@
 //! labelled view, in θ-slice order.
 
 use acch_core::{
-    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, Rect, View, ViewDatabase,
+    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, Rect, Smoothing, View,
+    ViewDatabase,
 };
 
 /// How to train a database.
@@ -19,6 +20,9 @@ pub struct TrainConfig {
     pub params: HistogramParams,
     /// Seed of the k-means initialisation.
     pub seed: u64,
+    /// How views and frames are smoothed before quantisation: the palette
+    /// learns the smoothed colours and quantises smoothed frames.
+    pub smoothing: Smoothing,
 }
 
 impl Default for TrainConfig {
@@ -29,6 +33,7 @@ impl Default for TrainConfig {
             reject_quantile: Some(0.99),
             params: HistogramParams::default(),
             seed: 0,
+            smoothing: Smoothing::Off,
         }
     }
 }
@@ -171,10 +176,20 @@ pub fn build_database(
     let step = (total / 200_000).max(1);
     let mut pixels = Vec::with_capacity(total / step + 1);
     let mut k = 0usize;
+    let (mut rows, mut smoothed) = (Vec::new(), Vec::new());
     for v in views {
+        // The colours frames will be quantised as.
+        let rgb = match config.smoothing {
+            Smoothing::Off => v.rgb,
+            Smoothing::Binomial => {
+                let (w, h) = (v.width as usize, v.height as usize);
+                acch_core::smooth::binomial_into(v.rgb, w, h, &mut rows, &mut smoothed);
+                &smoothed[..]
+            }
+        };
         for (i, _) in v.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
             if k.is_multiple_of(step) {
-                pixels.push([v.rgb[3 * i], v.rgb[3 * i + 1], v.rgb[3 * i + 2]]);
+                pixels.push([rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]]);
             }
             k += 1;
         }
@@ -185,7 +200,8 @@ pub fn build_database(
         config.space,
         config.reject_quantile,
         config.seed,
-    )?;
+    )?
+    .with_smoothing(config.smoothing);
     let params = HistogramParams {
         colours: config.colours as u16,
         ..config.params

@@ -138,7 +138,7 @@ impl LightSearch {
         // threshold, under any other at RELIT_SCORE_FRACTION.
         let run =
             |at: (usize, usize), palette: &Palette, detector: &mut Detector, indices: &mut [u8]| {
-                palette.quantise_into_slice(rgb, indices);
+                palette.quantise_into_slice(rgb, width, height, indices);
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
                     .detect(view, scale)

@@ -1,5 +1,6 @@
 //! Benchmarks of recognition and segmentation on a rendered 640x480 frame:
-//! quantisation (for reference, done once per frame by the caller), the
+//! quantisation (for reference, done once per frame by the caller; also
+//! with the frame smoothed first), the
 //! per-cell counts and their integral (`prepare`), the window scan, the
 //! segmentation (and without cutting foreign colours), and recognition +
 //! segmentation together, for the fruitbox
@@ -61,6 +62,15 @@ fn main() {
         let mut group = c.benchmark_group(format!("640x480_{name}"));
         group.bench_function("quantise", |b| {
             b.iter(|| palette.quantise_into(black_box(rgb), 640, 480, &mut index))
+        });
+        // What smoothing the frame first costs (`acch train --smoothing
+        // binomial`).
+        let smoothing = palette
+            .clone()
+            .with_smoothing(acch_core::Smoothing::Binomial);
+        let mut smoothed_index = IndexImage::default();
+        group.bench_function("quantise_smoothed", |b| {
+            b.iter(|| smoothing.quantise_into(black_box(rgb), 640, 480, &mut smoothed_index))
         });
         group.bench_function("prepare", |b| {
             b.iter(|| detector.prepare(black_box(&index)))
