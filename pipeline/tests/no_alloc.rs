@@ -3,9 +3,10 @@
 //! indices, recognition's region counts written and read back, region
 //! growing, the pose stage at a scale that changes every frame, the
 //! confidence stage, seeding with fusion, the step both executors take,
-//! the JSON written for zenoh, and the stage process's own loop over
-//! iceoryx2. A counting global allocator watches the threads that run them;
-//! each check starts with a positive control that proves it counts.
+//! the JSON written for zenoh, a palette that smooths the frame first, and
+//! the stage process's own loop over iceoryx2. A counting global allocator
+//! watches the threads that run them; each check starts with a positive
+//! control that proves it counts.
 //!
 //! One allocation per published sample is iceoryx2's, not ours: 0.10's
 //! `Publisher::loan_slice_uninit` puts each loaned sample's shared state in
@@ -223,6 +224,32 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         }),
         0
     );
+}
+
+#[test]
+fn a_smoothing_palette_quantises_without_allocating_once_warm() {
+    let _one = serial();
+    let palette = database()
+        .palette
+        .with_smoothing(acch_core::Smoothing::Binomial);
+    let frames = frames();
+    let (w, h) = (
+        frames[0].0.envelope.frame.width,
+        frames[0].0.envelope.frame.height,
+    );
+    let mut index = acch_core::IndexImage::default();
+    let mut slice = vec![0u8; (w * h) as usize];
+    // The first frame sizes this thread's scratch: the control that the
+    // smoothing's buffers are counted.
+    assert!(allocations(|| palette.quantise_into(&frames[0].1, w, h, &mut index)) >= 1);
+    let after = allocations(|| {
+        for (_, rgb) in &frames {
+            palette.quantise_into(rgb, w, h, &mut index);
+            palette.quantise_into_slice(rgb, w, h, &mut slice);
+        }
+    });
+    assert_eq!(after, 0, "allocations over {} frames", frames.len());
+    assert_eq!(slice, index.data);
 }
 
 #[test]
