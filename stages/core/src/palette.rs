@@ -159,7 +159,16 @@ impl Palette {
         let centres = kmeans(&sample, colours, 25, &mut rng);
         let reject_distance = match reject_quantile {
             None => f32::INFINITY,
-            Some(q) => quantile_distance(&centres, &sample, q),
+            Some(q) => {
+                let mut d: Vec<f32> = sample
+                    .iter()
+                    .map(|p| nearest(&centres, p).1.sqrt())
+                    .collect();
+                d.sort_by(f32::total_cmp);
+                let q = q.clamp(0.0, 1.0);
+                let i = ((d.len() - 1) as f32 * q).round() as usize;
+                d[i] * 1.5
+            }
         };
         Self::from_centres(space, centres, reject_distance)
     }
@@ -417,18 +426,6 @@ impl<'a> From<&'a IndexImage> for IndexView<'a> {
 fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-}
-
-/// 1.5 times the `quantile` of `sample`'s distances to their nearest centre.
-fn quantile_distance(centres: &[[f32; 3]], sample: &[[f32; 3]], quantile: f32) -> f32 {
-    let mut d: Vec<f32> = sample
-        .iter()
-        .map(|p| nearest(centres, p).1.sqrt())
-        .collect();
-    d.sort_by(f32::total_cmp);
-    let q = quantile.clamp(0.0, 1.0);
-    let i = ((d.len() - 1) as f32 * q).round() as usize;
-    d[i] * 1.5
 }
 
 fn nearest(centres: &[[f32; 3]], p: &[f32; 3]) -> (usize, f32) {
