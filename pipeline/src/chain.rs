@@ -97,6 +97,22 @@ impl Chain {
         )
     }
 
+    /// [`recognise`](Self::recognise) on a frame whose indices under the
+    /// database's palette `quantise` writes (through a joint palette
+    /// shared with other objects' chains, [`crate::multi`]): recognition
+    /// quantises the frame itself only under another light.
+    pub fn recognise_quantised(
+        &mut self,
+        frame: &FrameHeader,
+        rgb: &[u8],
+        quantise: impl FnOnce(&mut [u8]),
+    ) -> Recognised {
+        let s = &mut self.stages.recognition;
+        quantise(&mut self.buffers[0][..s.pixels()]);
+        s.indices_written();
+        self.recognise(frame, rgb)
+    }
+
     /// Segmentation, pose, confidence and seeding on what
     /// [`recognise`](Self::recognise) returned for the last frame (its
     /// detection may since have been withdrawn).

@@ -6,12 +6,14 @@
 //! seeding run per detection. The lanes run on a pool of threads that live
 //! as long as the chain, each on a CPU of its own (docs/multi.md: a thread
 //! started per frame waits for the CPU of the thread that started it).
+//! The frame is quantised once for every lane, through a
+//! [`JointPalette`] of their palettes.
 
 use crate::chain::Chain;
 use crate::frame::FrameHeader;
 use crate::stages::{BuildError, Recognised, Seeded, StageSettings, Window};
 use crate::wire::{Outcome, PixelRect};
-use acch_core::ViewDatabase;
+use acch_core::{JointPalette, ViewDatabase};
 use rayon::prelude::*;
 
 /// Windows of two objects overlapping by more than this share of the
@@ -38,6 +40,11 @@ pub struct MultiChain {
     seeded: Vec<Seeded>,
     /// The lanes' threads; `None` runs every lane on the caller's.
     pool: Option<rayon::ThreadPool>,
+    /// One quantisation pass for every lane's palette (none for one lane,
+    /// or palettes that smooth frames differently: each lane quantises).
+    joint: Option<JointPalette>,
+    /// The frame's joint colours, reused between frames.
+    labels: Vec<u16>,
     /// The frame's windows and what suppression keeps, reused between
     /// frames so a frame allocates nothing here.
     windows: Vec<Option<Window>>,
@@ -66,14 +73,37 @@ impl MultiChain {
             .collect::<Result<Vec<_>, BuildError>>()?;
         let threads = threads.clamp(1, lanes.len().max(1));
         let pool = (threads > 1).then(|| lane_pool(threads)).transpose()?;
+        let palettes: Vec<_> = objects.iter().map(|(db, _)| &db.palette).collect();
+        let joint = match JointPalette::new(&palettes) {
+            Ok(joint) if palettes.len() > 1 => Some(joint),
+            Ok(_) => None,
+            Err(e) => {
+                tracing::info!("each object quantises the frame with its own palette: {e}");
+                None
+            }
+        };
         Ok(MultiChain {
             seeded: vec![Seeded::default(); lanes.len()],
             lanes,
             pool,
+            joint,
+            labels: Vec::new(),
             windows: Vec::new(),
             order: Vec::new(),
             keep: Vec::new(),
         })
+    }
+
+    /// Each lane quantises the frame with its own palette, as a chain
+    /// alone does, instead of sharing one pass (to measure the sharing).
+    pub fn quantise_apart(mut self) -> Self {
+        self.joint = None;
+        self
+    }
+
+    /// Joint colours of the pass the lanes share, if they share one.
+    pub fn joint_colours(&self) -> Option<usize> {
+        self.joint.as_ref().map(JointPalette::colours)
     }
 
     /// The lanes, in the order they were built.
@@ -89,7 +119,34 @@ impl MultiChain {
     /// Runs every lane on frame `frame` (packed RGB `rgb`) and returns each
     /// lane's result, in lane order.
     pub fn process(&mut self, frame: &FrameHeader, rgb: &[u8]) -> &[Seeded] {
-        self.each_lane(|lane| lane.recognised = lane.chain.recognise(frame, rgb));
+        let (width, height) = (frame.envelope.frame.width, frame.envelope.frame.height);
+        let pixels = width as usize * height as usize;
+        match &self.joint {
+            // A frame of another size than its bytes: each lane's
+            // recognition refuses it.
+            Some(joint) if rgb.len() == 3 * pixels => {
+                self.labels.resize(pixels, 0);
+                label(
+                    joint,
+                    self.pool.as_ref(),
+                    rgb,
+                    (width, height),
+                    &mut self.labels,
+                );
+                let labels = &self.labels[..];
+                each_lane(self.pool.as_ref(), &mut self.lanes, |k, lane| {
+                    lane.recognised = lane.chain.recognise_quantised(frame, rgb, |out| {
+                        // Another size than the lane's: recognition faults.
+                        if out.len() == labels.len() {
+                            joint.indices(k, labels, out);
+                        }
+                    })
+                });
+            }
+            _ => each_lane(self.pool.as_ref(), &mut self.lanes, |_, lane| {
+                lane.recognised = lane.chain.recognise(frame, rgb)
+            }),
+        }
         self.windows.clear();
         self.windows
             .extend(self.lanes.iter().map(|l| match l.recognised.detection {
@@ -103,7 +160,7 @@ impl MultiChain {
                 lane.suppressed += 1;
             }
         }
-        self.each_lane(|lane| {
+        each_lane(self.pool.as_ref(), &mut self.lanes, |_, lane| {
             let r = lane.recognised;
             let _ = lane.chain.finish(&r);
         });
@@ -112,15 +169,54 @@ impl MultiChain {
         }
         &self.seeded
     }
+}
 
-    /// Runs `work` on every lane, spread over the chain's threads (a
-    /// thread that is done takes a lane another has not started).
-    fn each_lane(&mut self, work: impl Fn(&mut Lane) + Sync + Send) {
-        match &self.pool {
-            Some(pool) => {
-                pool.install(|| self.lanes.par_iter_mut().with_max_len(1).for_each(&work))
-            }
-            None => self.lanes.iter_mut().for_each(work),
+/// Runs `work` on every lane (with its position), spread over `pool`'s
+/// threads (a thread that is done takes a lane another has not started),
+/// or on the caller's without one.
+fn each_lane(
+    pool: Option<&rayon::ThreadPool>,
+    lanes: &mut [Lane],
+    work: impl Fn(usize, &mut Lane) + Sync + Send,
+) {
+    match pool {
+        Some(pool) => pool.install(|| {
+            lanes
+                .par_iter_mut()
+                .enumerate()
+                .with_max_len(1)
+                .for_each(|(k, lane)| work(k, lane))
+        }),
+        None => lanes.iter_mut().enumerate().for_each(|(k, l)| work(k, l)),
+    }
+}
+
+/// The joint colours of frame `rgb` into `labels`, smoothed first as the
+/// palettes smooth (on the caller's thread), labelled in a band per thread
+/// of `pool`.
+fn label(
+    joint: &JointPalette,
+    pool: Option<&rayon::ThreadPool>,
+    rgb: &[u8],
+    (width, height): (u32, u32),
+    labels: &mut [u16],
+) {
+    let Some(pool) = pool else {
+        return joint.label(rgb, width, height, labels);
+    };
+    let band = labels.len().div_ceil(pool.current_num_threads()).max(1);
+    let mut in_bands = |rgb: &[u8]| {
+        pool.install(|| {
+            labels
+                .par_chunks_mut(band)
+                .zip(rgb.par_chunks(3 * band))
+                .for_each(|(l, px)| joint.label_pixels(px, l))
+        })
+    };
+    match joint.smoothing() {
+        acch_core::Smoothing::Off => in_bands(rgb),
+        acch_core::Smoothing::Binomial => {
+            acch_core::smooth::with_smoothed(rgb, width, height, in_bands)
         }
     }
 }

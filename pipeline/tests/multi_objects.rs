@@ -1,12 +1,13 @@
 //! Several objects in one frame: every lane of a `MultiChain` finds its
 //! own object where it stands, two lanes never report the same place, and
 //! a lane whose detection is not withdrawn computes exactly what its chain
-//! alone computes on the frame.
+//! alone computes on the frame, whether the lanes share one quantisation
+//! pass or not.
 
 use acch_capture::{
     Background, MULTI_DISTANCE, MultiRenderer, MultiScene, Object, Renderer, SceneConfig, ViewSpec,
 };
-use acch_core::ViewDatabase;
+use acch_core::{Smoothing, ViewDatabase};
 use acch_pipeline::multi::{NMS_OVERLAP, overlap};
 use acch_pipeline::wire::Intrinsics;
 use acch_pipeline::{Chain, FrameHeader, MultiChain, StageSettings};
@@ -113,4 +114,72 @@ fn a_lane_computes_what_its_chain_alone_computes() {
         }
     }
     assert!(compared > 0);
+}
+
+#[test]
+fn sharing_one_quantisation_pass_changes_nothing_a_lane_computes() {
+    let known = [database("fruitbox"), database("can"), database("tricolor")];
+    let mut scene = MultiScene::new(
+        known[..2].iter().map(|(o, _)| o.clone()).collect(),
+        Background::C,
+    );
+    scene.distractors = 1;
+    for smoothing in [Smoothing::Off, Smoothing::Binomial] {
+        let dbs: Vec<ViewDatabase> = known
+            .iter()
+            .map(|(_, db)| {
+                let mut db = db.clone();
+                db.palette = db.palette.clone().with_smoothing(smoothing);
+                db
+            })
+            .collect();
+        // The light searched too: a relit lane quantises on its own.
+        let lanes: Vec<_> = dbs
+            .iter()
+            .zip(&known)
+            .map(|(db, (o, _))| {
+                let light_search = 4;
+                (
+                    db,
+                    StageSettings {
+                        light_search,
+                        ..settings(o)
+                    },
+                )
+            })
+            .collect();
+        let mut shared = MultiChain::build(&lanes, 2).unwrap();
+        assert!(shared.joint_colours().is_some_and(|c| c > 16));
+        let mut apart = MultiChain::build(&lanes, 2).unwrap().quantise_apart();
+        assert_eq!(apart.joint_colours(), None);
+        let mut found = 0;
+        for seed in 0..6u64 {
+            let f = MultiRenderer::new(scene.clone(), seed)
+                .unwrap()
+                .render(65.0, 60.0 * seed as f64, seed)
+                .unwrap();
+            // Every other frame dimmed, so lanes search other light.
+            let gain = if seed % 2 == 0 { 1.0 } else { 0.6 };
+            let rgb: Vec<u8> = f
+                .image
+                .as_raw()
+                .iter()
+                .map(|&c| (c as f32 * gain) as u8)
+                .collect();
+            let header = FrameHeader::rgb(seed, 640, 480, Intrinsics::from(&scene.intrinsics));
+            let a = shared.process(&header, &rgb).to_vec();
+            let b = apart.process(&header, &rgb).to_vec();
+            for (k, (a, b)) in a.iter().zip(&b).enumerate() {
+                let at = format!("{smoothing:?}, seed {seed}, lane {k}");
+                assert_eq!(a.detection(), b.detection(), "{at}");
+                assert_eq!(a.region(), b.region(), "{at}");
+                assert_eq!(a.pose(), b.pose(), "{at}");
+                found += a.detection().done().is_some() as usize;
+            }
+        }
+        assert!(
+            found >= 6,
+            "{smoothing:?}: only {found} detections compared"
+        );
+    }
 }

@@ -142,6 +142,9 @@ impl<'a> RecognitionPayload<'a> {
 /// The recognition stage.
 pub struct Recognition {
     lights: LightSearch,
+    /// The next frame's indices under the training light are already in
+    /// the payload ([`Recognition::indices_written`]).
+    indices_written: bool,
     detector: Detector,
     scale: Option<f32>,
     size: (u32, u32),
@@ -153,6 +156,7 @@ impl Recognition {
         let model = recognition_model(db)?;
         Ok(Recognition {
             lights: LightSearch::new(&db.palette, settings.light_search),
+            indices_written: false,
             detector: Detector::new(model, settings.width, settings.height)?,
             scale: settings.scale(db),
             size: (settings.width, settings.height),
@@ -164,7 +168,16 @@ impl Recognition {
         &self.detector
     }
 
-    fn pixels(&self) -> usize {
+    /// Says that the next frame's indices under the database's palette
+    /// are already in the first bytes of the payload buffer it will be
+    /// handed (a [`acch_core::JointPalette`] shared by several objects
+    /// wrote them): under the training light they are not quantised again.
+    pub fn indices_written(&mut self) {
+        self.indices_written = true;
+    }
+
+    /// Pixels of a frame: the payload's leading index bytes.
+    pub fn pixels(&self) -> usize {
         self.size.0 as usize * self.size.1 as usize
     }
 }
@@ -194,6 +207,8 @@ impl Stage for Recognition {
         rgb: &[u8],
         out: &mut [u8],
     ) -> Result<Outcome<Window>, Fault> {
+        // Said for this frame only, whatever becomes of it.
+        let written = std::mem::take(&mut self.indices_written);
         let f = &frame.envelope.frame;
         if (f.width, f.height) != self.size || rgb.len() != 3 * self.pixels() {
             return Err(Fault::FrameSize);
@@ -202,9 +217,13 @@ impl Stage for Recognition {
         // Quantised straight into the output: later stages read these
         // indices where they are.
         let (index_out, counts_out) = out.split_at_mut(self.pixels());
-        let found = self
-            .lights
-            .detect(&mut self.detector, rgb, (w, h), index_out, self.scale);
+        let found = self.lights.detect(
+            &mut self.detector,
+            rgb,
+            (w, h),
+            (index_out, written),
+            self.scale,
+        );
         let Some(d) = found else {
             return Ok(Outcome::Nothing);
         };

@@ -9,6 +9,7 @@
 
 pub mod database;
 pub mod histogram;
+pub mod joint;
 pub mod light;
 pub mod palette;
 pub mod smooth;
@@ -18,5 +19,6 @@ pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
     match_value, roll_acch, roll_invariant, scaled_intersection,
 };
+pub use joint::{JointPalette, JointPaletteError};
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};
 pub use smooth::Smoothing;

@@ -18,6 +18,21 @@ pub const MAX_COLOURS: usize = NOT_OBJECT as usize;
 const LUT_BITS: u32 = 6;
 const LUT_SIDE: usize = 1 << LUT_BITS;
 
+/// Cells of a lookup table.
+pub(crate) const LUT_CELLS: usize = LUT_SIDE * LUT_SIDE * LUT_SIDE;
+
+/// The lookup table's cell of an RGB pixel.
+#[inline]
+pub(crate) fn lut_cell(rgb: [u8; 3]) -> usize {
+    let s = 8 - LUT_BITS;
+    let (r, g, b) = (
+        (rgb[0] >> s) as usize,
+        (rgb[1] >> s) as usize,
+        (rgb[2] >> s) as usize,
+    );
+    (r * LUT_SIDE + g) * LUT_SIDE + b
+}
+
 /// Colour space in which k-means runs and distances are measured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ColourSpace {
@@ -191,7 +206,7 @@ impl Palette {
             centres,
             reject_distance,
             smoothing: Smoothing::Off,
-            lut: vec![NOT_OBJECT; LUT_SIDE * LUT_SIDE * LUT_SIDE],
+            lut: vec![NOT_OBJECT; LUT_CELLS],
         };
         palette.build_lut();
         Ok(palette)
@@ -268,13 +283,12 @@ impl Palette {
     /// Palette index of one RGB pixel, O(1).
     #[inline]
     pub fn index(&self, rgb: [u8; 3]) -> u8 {
-        let s = 8 - LUT_BITS;
-        let (r, g, b) = (
-            (rgb[0] >> s) as usize,
-            (rgb[1] >> s) as usize,
-            (rgb[2] >> s) as usize,
-        );
-        self.lut[(r * LUT_SIDE + g) * LUT_SIDE + b]
+        self.lut[lut_cell(rgb)]
+    }
+
+    /// The lookup table: the index of every cell ([`lut_cell`]).
+    pub(crate) fn lut(&self) -> &[u8] {
+        &self.lut
     }
 
     /// Nearest centre of a pixel and its distance, computed exactly (not via

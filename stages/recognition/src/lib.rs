@@ -179,12 +179,12 @@ mod tests {
         // Under the training light alone the dim object is lost.
         let mut off = LightSearch::new(&palette(), 0);
         assert!(
-            off.detect(&mut det, &dim, (W, H), &mut indices, None)
+            off.detect(&mut det, &dim, (W, H), (&mut indices, false), None)
                 .is_none()
         );
         let mut search = LightSearch::new(&palette(), CANDIDATES);
         let d = search
-            .detect(&mut det, &dim, (W, H), &mut indices, None)
+            .detect(&mut det, &dim, (W, H), (&mut indices, false), None)
             .expect("found under the light searched");
         let (cx, cy) = (
             d.window.x + d.window.width / 2,
@@ -203,7 +203,7 @@ mod tests {
         // A clean frame is the training light's, found at once.
         assert!(
             search
-                .detect(&mut det, &rgb, (W, H), &mut indices, None)
+                .detect(&mut det, &rgb, (W, H), (&mut indices, false), None)
                 .is_some()
         );
         assert_eq!(search.gains(), [1.0; 3]);
@@ -211,7 +211,30 @@ mod tests {
         let (empty, _) = frame(None, noisy);
         assert!(
             search
-                .detect(&mut det, &empty, (W, H), &mut indices, None)
+                .detect(&mut det, &empty, (W, H), (&mut indices, false), None)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn indices_said_to_be_written_are_used_and_others_are_not() {
+        let mut det = Detector::new(model(), W, H).unwrap();
+        let (rgb, _) = frame(Some((84, 24)), noisy);
+        let (empty, _) = frame(None, noisy);
+        let mut search = LightSearch::new(&palette(), 0);
+        // The object's frame quantised by another (a joint palette): the
+        // empty RGB frame handed beside it is not read.
+        let mut indices = quantised(&rgb).data;
+        assert!(
+            search
+                .detect(&mut det, &empty, (W, H), (&mut indices, true), None)
+                .is_some()
+        );
+        // Not said to be written: the RGB frame is quantised over them.
+        let mut indices = quantised(&rgb).data;
+        assert!(
+            search
+                .detect(&mut det, &empty, (W, H), (&mut indices, false), None)
                 .is_none()
         );
     }

@@ -124,21 +124,29 @@ impl LightSearch {
     /// when the object is lost or weak, tries other lights within the
     /// frame's budget and keeps the best scoring: its indices are left in
     /// `indices`, the detector holds its counts, and it is the light of
-    /// the next frame.
+    /// the next frame. With `quantised`, `indices` already hold the frame
+    /// quantised under the training light (by a [`acch_core::JointPalette`]
+    /// shared with other objects), and are used when that is the light in
+    /// use.
     pub fn detect(
         &mut self,
         detector: &mut Detector,
         rgb: &[u8],
         (width, height): (u32, u32),
-        indices: &mut [u8],
+        (indices, quantised): (&mut [u8], bool),
         scale: Option<f32>,
     ) -> Option<Detection> {
         let train_score = detector.model().train_score;
+        let mut training_indices_ready = quantised;
         // A detection counts under the training light at the model's
         // threshold, under any other at RELIT_SCORE_FRACTION.
-        let run =
+        let mut run =
             |at: (usize, usize), palette: &Palette, detector: &mut Detector, indices: &mut [u8]| {
-                palette.quantise_into_slice(rgb, width, height, indices);
+                // Only the first run may find the indices written.
+                let ready = std::mem::take(&mut training_indices_ready);
+                if !(ready && at == TRAINING) {
+                    palette.quantise_into_slice(rgb, width, height, indices);
+                }
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
                     .detect(view, scale)
