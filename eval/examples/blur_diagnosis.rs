@@ -17,8 +17,8 @@ use acch_core::ViewDatabase;
 use acch_eval::protocol::{self, fails};
 use acch_eval::train::{RenderedTraining, train_views, unrated_chain};
 use acch_pipeline::Stage;
-use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
-use acch_pipeline::wire::{Outcome, PixelRect};
+use acch_pipeline::stages::{Pose, Segmented};
+use acch_pipeline::wire::Outcome;
 use acch_pose::train::TrainConfig;
 use std::sync::Arc;
 
@@ -119,15 +119,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         }
                         // The pose from the true mask.
                         let index = db.palette.quantise(r.image.as_raw(), w, h);
-                        let Some(bbox) = acch_pose::train::mask_bbox(r.mask.as_raw(), w, h) else {
+                        let mut payload = vec![0u8; 2 * (w * h) as usize];
+                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
+                        let given = Segmented::from_mask(
+                            frame.envelope,
+                            r.mask.as_raw(),
+                            &index.data,
+                            w,
+                            &mut payload,
+                        )?;
+                        let Some(header) = given else {
                             t.3 += 1;
                             continue;
                         };
-                        let roi = PixelRect::from(bbox);
-                        let mut payload = vec![0u8; 2 * (w * h) as usize];
-                        RegionPayload::write(r.mask.as_raw(), &index.data, w, roi, &mut payload)?;
-                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
-                        let header = Segmented::with_region(frame.envelope, roi);
                         let mut response = vec![0u8; pose.max_payload()];
                         t.3 += match pose.process(&header, &payload, &mut response) {
                             Ok(Outcome::Done(e)) => fails((e.theta_deg, e.phi_deg), truth) as usize,

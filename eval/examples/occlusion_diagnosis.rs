@@ -12,8 +12,8 @@ use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSp
 use acch_core::NOT_OBJECT;
 use acch_eval::protocol::{self, fails};
 use acch_pipeline::Stage;
-use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
-use acch_pipeline::wire::{Outcome, PixelRect};
+use acch_pipeline::stages::{Pose, Segmented};
+use acch_pipeline::wire::Outcome;
 use std::sync::Arc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -98,15 +98,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         iou_sum += protocol::mask_iou(&grown, r.mask.as_raw());
                     }
                     // The pose from the true visible mask.
-                    let Some(bbox) = acch_pose::train::mask_bbox(r.mask.as_raw(), w, h) else {
+                    let mut payload = vec![0u8; 2 * (w * h) as usize];
+                    let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
+                    let given = Segmented::from_mask(
+                        frame.envelope,
+                        r.mask.as_raw(),
+                        &index.data,
+                        w,
+                        &mut payload,
+                    )?;
+                    let Some(header) = given else {
                         true_fail += 1;
                         continue;
                     };
-                    let roi = PixelRect::from(bbox);
-                    let mut payload = vec![0u8; 2 * (w * h) as usize];
-                    RegionPayload::write(r.mask.as_raw(), &index.data, w, roi, &mut payload)?;
-                    let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
-                    let header = Segmented::with_region(frame.envelope, roi);
                     let mut response = vec![0u8; pose.max_payload()];
                     match pose.process(&header, &payload, &mut response) {
                         Ok(Outcome::Done(e)) => {

@@ -106,20 +106,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     scenes[s] += 1;
                     {
                         use acch_pipeline::Stage;
-                        let roi = acch_pipeline::wire::PixelRect::from(
-                            mask_bbox(r.mask.as_raw(), w, h).ok_or("empty")?,
-                        );
                         let mut payload = vec![0u8; 2 * (w * h) as usize];
-                        acch_pipeline::stages::RegionPayload::write(
+                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
+                        let header = acch_pipeline::stages::Segmented::from_mask(
+                            frame.envelope,
                             r.mask.as_raw(),
                             &index.data,
                             w,
-                            roi,
                             &mut payload,
-                        )?;
-                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
-                        let header =
-                            acch_pipeline::stages::Segmented::with_region(frame.envelope, roi);
+                        )?
+                        .ok_or("empty")?;
                         let mut response = vec![0u8; stage.max_payload()];
                         if let Ok(acch_pipeline::wire::Outcome::Done(e)) =
                             stage.process(&header, &payload, &mut response)

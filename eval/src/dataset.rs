@@ -16,11 +16,10 @@ use crate::train::{read_image, read_mask};
 use acch_capture::labels::read_labels;
 use acch_core::{IndexImage, ViewDatabase};
 use acch_pipeline::stage::{StageCounters, step};
-use acch_pipeline::stages::{RegionPayload, Segmented};
-use acch_pipeline::wire::{Intrinsics, PixelRect, StageId};
+use acch_pipeline::stages::Segmented;
+use acch_pipeline::wire::{Intrinsics, StageId};
 use acch_pipeline::{Chain, FrameHeader, Stage, StageSettings};
 use acch_pose::phi_error;
-use acch_pose::train::mask_bbox;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -308,19 +307,18 @@ pub fn evaluate(
             Segment::Mask => {
                 let path = img.mask.as_ref().expect("checked above");
                 let mask = read_mask(path, (w, h))?;
-                match mask_bbox(&mask, w, h) {
+                db.palette.quantise_into(rgb.as_raw(), w, h, &mut index);
+                region.resize(2 * w as usize * h as usize, 0);
+                let given =
+                    Segmented::from_mask(frame.envelope, &mask, &index.data, w, &mut region)
+                        .map_err(|f| EvalError::Input(format!("{}: {f}", path.display())))?;
+                match given {
                     None => (None, Default::default()),
-                    Some(roi) => {
-                        let roi = PixelRect::from(roi);
-                        db.palette.quantise_into(rgb.as_raw(), w, h, &mut index);
-                        region.resize(2 * w as usize * h as usize, 0);
+                    Some(segmented) => {
                         // The chain's own pose and confidence stages, fed
                         // the annotated mask instead of segmentation's.
                         let stages = s.chain.stages_mut();
                         response.resize(stages.pose.max_payload(), 0);
-                        RegionPayload::write(&mask, &index.data, w, roi, &mut region)
-                            .map_err(|f| EvalError::Input(format!("{}: {f}", path.display())))?;
-                        let segmented = Segmented::with_region(frame.envelope, roi);
                         let [c_pose, c_conf] = &mut counters;
                         let posed = step(
                             &mut stages.pose,

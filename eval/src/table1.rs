@@ -12,10 +12,10 @@ use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Rendered, TextureSet, ViewPose, ViewSpec,
 };
 use acch_core::{HistogramKind, IndexImage, ViewDatabase};
-use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
-use acch_pipeline::wire::{Intrinsics, Outcome, PixelRect};
+use acch_pipeline::stages::{Pose, Segmented};
+use acch_pipeline::wire::{Intrinsics, Outcome};
 use acch_pipeline::{FrameHeader, Stage, StageSettings};
-use acch_pose::train::{LabelledView, TrainConfig, mask_bbox};
+use acch_pose::train::{LabelledView, TrainConfig};
 use acch_pose::{Refinement, phi_error};
 use serde::Serialize;
 use std::path::Path;
@@ -365,17 +365,16 @@ fn evaluate(
     let mut seconds = 0.0f64;
     for (i, r) in tests.iter().enumerate() {
         let truth = (r.truth.theta_deg as f32, r.truth.phi_deg as f32);
-        let Some(roi) = mask_bbox(r.mask.as_raw(), w, h) else {
+        let t = Instant::now();
+        db.palette.quantise_into(r.image.as_raw(), w, h, &mut index);
+        let frame = FrameHeader::rgb(i as u64, w, h, Intrinsics::from(&r.truth.intrinsics));
+        let given =
+            Segmented::from_mask(frame.envelope, r.mask.as_raw(), &index.data, w, &mut region)
+                .map_err(|f| EvalError::Input(format!("test view {i}: {f}")))?;
+        let Some(header) = given else {
             failures += 1;
             continue;
         };
-        let roi = PixelRect::from(roi);
-        let t = Instant::now();
-        db.palette.quantise_into(r.image.as_raw(), w, h, &mut index);
-        RegionPayload::write(r.mask.as_raw(), &index.data, w, roi, &mut region)
-            .map_err(|f| EvalError::Input(format!("test view {i}: {f}")))?;
-        let frame = FrameHeader::rgb(i as u64, w, h, Intrinsics::from(&r.truth.intrinsics));
-        let header = Segmented::with_region(frame.envelope, roi);
         let estimate = match pose.process(&header, &region, &mut response) {
             Ok(Outcome::Done(e)) => Some(e),
             _ => None,

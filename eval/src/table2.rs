@@ -23,11 +23,11 @@ use crate::train::{
 };
 use crate::{EvalError, write_json};
 use acch_capture::{DEFAULT_DISTANCE, Intrinsics, Object, TextureSet, ViewSpec};
-use acch_pipeline::stages::{Pose, RegionPayload, Segmented};
-use acch_pipeline::wire::{Outcome, PixelRect, StageId};
+use acch_pipeline::stages::{Pose, Segmented};
+use acch_pipeline::wire::{Outcome, StageId};
 use acch_pipeline::{Hop, Stage, StageSettings};
 use acch_pose::phi_error;
-use acch_pose::train::{TrainConfig, mask_bbox};
+use acch_pose::train::TrainConfig;
 use acch_recognition::RecognitionModel;
 use serde::Serialize;
 use std::path::Path;
@@ -280,16 +280,10 @@ pub fn table2(
                 .last_recognition()
                 .map(|r| r.indices.data)
                 .ok_or_else(|| EvalError::Input("recognition published no indices".into()))?;
-            let true_estimate = match mask_bbox(truth_mask, w, h) {
-                Some(roi) => {
-                    let roi = PixelRect::from(roi);
-                    RegionPayload::write(truth_mask, indices, w, roi, &mut region)
-                        .map_err(|f| EvalError::Input(format!("true mask: {f}")))?;
-                    let header = Segmented::with_region(*out.envelope(), roi);
-                    estimate_of(true_pose.process(&header, &region, &mut response))
-                }
-                None => None,
-            };
+            let given = Segmented::from_mask(*out.envelope(), truth_mask, indices, w, &mut region)
+                .map_err(|f| EvalError::Input(format!("true mask: {f}")))?;
+            let true_estimate = given
+                .and_then(|header| estimate_of(true_pose.process(&header, &region, &mut response)));
             true_failures += fails_or_none(true_estimate) as usize;
             let Some(segment) = chain.last_region() else {
                 not_found += 1;

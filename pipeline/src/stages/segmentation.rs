@@ -27,16 +27,32 @@ pub struct Segmented {
 }
 
 impl Segmented {
-    /// The header of a frame whose region is `roi`, found by other means
-    /// than the recognition stage (a ground-truth mask).
-    pub fn with_region(envelope: Envelope, roi: PixelRect) -> Self {
-        Segmented {
+    /// What the pose stage reads for an object `mask` found by other means
+    /// than recognition and segmentation (a ground-truth mask, an
+    /// annotation; one byte a pixel of a `width`-wide frame, non-zero =
+    /// object): the header, its region the mask's bounding box, with the
+    /// region payload written into `out` from the frame's palette
+    /// `indices`. `None` when the mask is empty.
+    pub fn from_mask(
+        envelope: Envelope,
+        mask: &[u8],
+        indices: &[u8],
+        width: u32,
+        out: &mut [u8],
+    ) -> Result<Option<Self>, Fault> {
+        let height = (mask.len() / width.max(1) as usize) as u32;
+        let Some(bbox) = acch_pose::train::mask_bbox(mask, width, height) else {
+            return Ok(None);
+        };
+        let roi = PixelRect::from(bbox);
+        RegionPayload::write(mask, indices, width, roi, out)?;
+        Ok(Some(Segmented {
             recognised: Recognised {
                 envelope,
                 detection: Outcome::Skipped,
             },
             region: Outcome::Done(roi),
-        }
+        }))
     }
 }
 
