@@ -1,0 +1,178 @@
+//! Would a check on clipped pixels reject the wrong estimates of an over
+//! exposed object? Per generated object, scenes rendered under the
+//! training light and over exposed (exposure 1.25x and 1.5x, byte
+//! brightness 1.25x and 1.5x), recognised with the single-image light
+//! search as the robust protocol does. For each estimate: accepted or not,
+//! wrong or not, and the share of clipped pixels (a channel at 254 or
+//! more) in the segmented region, against the largest share in the true
+//! mask of the object's clean scenes (a stand-in for what its training
+//! views hold, which the database does not store). Then, for limits of
+//! "region share above the clean largest plus a margin", what rejecting
+//! on it would leave accepted and wrong among the accepted.
+//!
+//! `cargo run --release -p acch-eval --example clipping_diagnosis -- [FIRST] [OBJECTS] [N]`
+//! (generated objects FIRST.., default 3000, 10 objects, 4 views a background).
+
+use acch_capture::{Background, Effects, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_eval::protocol::{self, fails};
+use acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH;
+use std::sync::Arc;
+
+/// A byte at or above this is taken as clipped.
+const CLIPPED: u8 = 254;
+
+/// Share of the set pixels of `mask` (one byte a pixel) whose colour in
+/// `rgb` has a clipped channel.
+fn clipped_share(rgb: &[u8], mask: impl Iterator<Item = usize>) -> f64 {
+    let (mut n, mut clipped) = (0usize, 0usize);
+    for p in mask {
+        n += 1;
+        clipped += rgb[3 * p..3 * p + 3].iter().any(|&c| c >= CLIPPED) as usize;
+    }
+    clipped as f64 / n.max(1) as f64
+}
+
+/// One estimate: (condition, accepted, wrong, region share, clean largest).
+type Record = (&'static str, bool, bool, f64, f64);
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<u64> = std::env::args()
+        .skip(1)
+        .map(|a| a.parse())
+        .collect::<Result<_, _>>()?;
+    let first = args.first().copied().unwrap_or(3000);
+    let count = args.get(1).copied().unwrap_or(10);
+    let n = args.get(2).copied().unwrap_or(4) as usize;
+    let conditions: [(&str, Effects); 5] = [
+        ("clean", Effects::default()),
+        (
+            "exposure 1.25",
+            Effects {
+                exposure: 1.25,
+                ..Effects::default()
+            },
+        ),
+        (
+            "exposure 1.5",
+            Effects {
+                exposure: 1.5,
+                ..Effects::default()
+            },
+        ),
+        (
+            "brightness 1.25",
+            Effects {
+                brightness: 1.25,
+                ..Effects::default()
+            },
+        ),
+        (
+            "brightness 1.5",
+            Effects {
+                brightness: 1.5,
+                ..Effects::default()
+            },
+        ),
+    ];
+    let mut records: Vec<Record> = Vec::new();
+    for k in first..first + count {
+        let object = Arc::new(Object::builtin(&format!("generated-{k}"))?);
+        let (db, _) = acch_eval::train::cached_database(&object, None)?;
+        let mut chain =
+            protocol::chain_at(&db, db.train_distance_m as f64, SINGLE_IMAGE_LIGHT_SEARCH)?;
+        let mut clean_largest = 0f64;
+        let mut estimates = Vec::new();
+        for (name, effects) in &conditions {
+            for (b, bg) in ["A", "B", "C"].iter().enumerate() {
+                let background: Background = bg.parse()?;
+                let mut config =
+                    SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+                config.effects = *effects;
+                let seed = protocol::scene_seed(5_000 + k, b, 0, 0x636c);
+                let renderer = Renderer::new(config, seed);
+                let views = ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
+                for (i, v) in views.iter().enumerate() {
+                    let r = renderer.render(v, acch_capture::frame_seed(seed, i));
+                    let (w, _) = r.image.dimensions();
+                    let rgb = r.image.as_raw();
+                    if *name == "clean" {
+                        let truth = r.mask.as_raw();
+                        let share = clipped_share(rgb, (0..truth.len()).filter(|&p| truth[p] != 0));
+                        clean_largest = clean_largest.max(share);
+                    }
+                    let out = chain.process(
+                        &protocol::frame_of(&r, i as u64, false, object.radius_m()),
+                        rgb,
+                    );
+                    let Some(e) = out.pose().done() else {
+                        continue;
+                    };
+                    let Some(region) = chain.last_region() else {
+                        continue;
+                    };
+                    let roi = region.roi;
+                    let pixels = (0..roi.height).flat_map(|y| {
+                        (0..roi.width).filter_map(move |x| {
+                            let m = region.mask[(y * roi.width + x) as usize];
+                            (m != 0).then_some(((roi.y + y) * w + roi.x + x) as usize)
+                        })
+                    });
+                    let share = clipped_share(rgb, pixels);
+                    let wrong = fails(
+                        (e.theta_deg, e.phi_deg),
+                        (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
+                    );
+                    let accepted = out.rating().verdict().is_some_and(|v| v.accepted);
+                    estimates.push((*name, accepted, wrong, share));
+                }
+            }
+        }
+        records.extend(
+            estimates
+                .into_iter()
+                .map(|(c, a, wr, s)| (c, a, wr, s, clean_largest)),
+        );
+        eprintln!(
+            "generated-{k}: clean largest clipped share {:.1} %",
+            100.0 * clean_largest
+        );
+    }
+    println!(
+        "condition | estimates | accepted % acc-fail % | region clipped % (right accepted / wrong accepted, means) | then per margin: accepted % acc-fail %"
+    );
+    let margins = [0.02, 0.05, 0.1, 0.2];
+    println!(
+        "margins: {}",
+        margins
+            .map(|m| format!("+{:.0} points", 100.0 * m))
+            .join(", ")
+    );
+    for (name, _) in &conditions {
+        let rows: Vec<&Record> = records.iter().filter(|r| r.0 == *name).collect();
+        let total = rows.len().max(1) as f64;
+        let acc: Vec<&&Record> = rows.iter().filter(|r| r.1).collect();
+        let acc_wrong = acc.iter().filter(|r| r.2).count();
+        let mean = |v: Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let right_share = mean(acc.iter().filter(|r| !r.2).map(|r| r.3).collect());
+        let wrong_share = mean(acc.iter().filter(|r| r.2).map(|r| r.3).collect());
+        let mut line = format!(
+            "{name:16} | {:3} | {:5.1} {:5.1} | {:5.1} / {:5.1} |",
+            rows.len(),
+            100.0 * acc.len() as f64 / total,
+            100.0 * acc_wrong as f64 / acc.len().max(1) as f64,
+            100.0 * right_share,
+            100.0 * wrong_share,
+        );
+        for m in margins {
+            let kept: Vec<&&&Record> = acc.iter().filter(|r| r.3 <= r.4 + m).collect();
+            let kept_wrong = kept.iter().filter(|r| r.2).count();
+            line += &format!(
+                " {:5.1} {:5.1} |",
+                100.0 * kept.len() as f64 / total,
+                100.0 * kept_wrong as f64 / kept.len().max(1) as f64
+            );
+        }
+        println!("{line}");
+    }
+    Ok(())
+}
