@@ -15,7 +15,9 @@
 
 use acch_capture::{Background, Effects, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
 use acch_eval::protocol::{self, fails};
-use acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH;
+use acch_pipeline::Stage;
+use acch_pipeline::stages::{Pose, SINGLE_IMAGE_LIGHT_SEARCH, Segmented};
+use acch_pipeline::wire::Outcome;
 use std::sync::Arc;
 
 /// A byte at or above this is taken as clipped.
@@ -32,8 +34,11 @@ fn clipped_share(rgb: &[u8], mask: impl Iterator<Item = usize>) -> f64 {
     clipped as f64 / n.max(1) as f64
 }
 
-/// One estimate: (condition, accepted, wrong, region share, clean largest).
-type Record = (&'static str, bool, bool, f64, f64);
+/// One estimate: (condition, accepted, wrong, region share, clean largest,
+/// the pose from the true mask wrong, from the true mask without its
+/// clipped pixels wrong, from the true mask quantised under the true light
+/// wrong).
+type Record = (&'static str, bool, bool, f64, f64, bool, bool, bool);
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<u64> = std::env::args()
@@ -80,6 +85,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (db, _) = acch_eval::train::cached_database(&object, None)?;
         let mut chain =
             protocol::chain_at(&db, db.train_distance_m as f64, SINGLE_IMAGE_LIGHT_SEARCH)?;
+        let mut pose = Pose::new(
+            &db,
+            &protocol::settings_at(&db, db.train_distance_m as f64, 0),
+        )?;
+        let mut payload = Vec::new();
+        let mut response = vec![0u8; pose.max_payload()];
         let mut clean_largest = 0f64;
         let mut estimates = Vec::new();
         for (name, effects) in &conditions {
@@ -123,14 +134,62 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
                     );
                     let accepted = out.rating().verdict().is_some_and(|v| v.accepted);
-                    estimates.push((*name, accepted, wrong, share));
+                    // The pose stage on the true mask, with the indices of
+                    // the light recognition chose, and on the true mask
+                    // without its clipped pixels.
+                    let indices = chain
+                        .last_recognition()
+                        .ok_or("no indices")?
+                        .indices
+                        .data
+                        .to_vec();
+                    let truth = r.mask.as_raw();
+                    let unclipped: Vec<u8> = truth
+                        .iter()
+                        .zip(rgb.chunks_exact(3))
+                        .map(|(&m, px)| {
+                            if px.iter().any(|&c| c >= CLIPPED) {
+                                0
+                            } else {
+                                m
+                            }
+                        })
+                        .collect();
+                    // Exposure multiplies the linear light: the palette
+                    // relit by it is the true light's (brightness has none).
+                    let true_light = db
+                        .palette
+                        .relit([effects.exposure; 3])?
+                        .quantise(rgb, w, r.image.height())
+                        .data;
+                    let mut true_wrong = [true; 3];
+                    for (t, (mask, indices)) in true_wrong.iter_mut().zip([
+                        (&truth[..], &indices[..]),
+                        (&unclipped[..], &indices[..]),
+                        (&truth[..], &true_light[..]),
+                    ]) {
+                        payload.resize(2 * mask.len(), 0);
+                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
+                        let given =
+                            Segmented::from_mask(frame.envelope, mask, indices, w, &mut payload)?;
+                        if let Some(header) = given
+                            && let Ok(Outcome::Done(e)) =
+                                pose.process(&header, &payload, &mut response)
+                        {
+                            *t = fails(
+                                (e.theta_deg, e.phi_deg),
+                                (r.truth.theta_deg as f32, r.truth.phi_deg as f32),
+                            );
+                        }
+                    }
+                    estimates.push((*name, accepted, wrong, share, true_wrong));
                 }
             }
         }
         records.extend(
             estimates
                 .into_iter()
-                .map(|(c, a, wr, s)| (c, a, wr, s, clean_largest)),
+                .map(|(c, a, wr, s, t)| (c, a, wr, s, clean_largest, t[0], t[1], t[2])),
         );
         eprintln!(
             "generated-{k}: clean largest clipped share {:.1} %",
@@ -138,7 +197,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     }
     println!(
-        "condition | estimates | accepted % acc-fail % | region clipped % (right accepted / wrong accepted, means) | then per margin: accepted % acc-fail %"
+        "condition | estimates | accepted % acc-fail % | region clipped % (right accepted / wrong accepted, means) | then per margin: accepted % acc-fail % | wrong % of the estimates: chain, true mask, true mask without clipped pixels, true mask under the true light (exposure only)"
     );
     let margins = [0.02, 0.05, 0.1, 0.2];
     println!(
@@ -172,6 +231,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 100.0 * kept_wrong as f64 / kept.len().max(1) as f64
             );
         }
+        let pct = |v: usize| 100.0 * v as f64 / total;
+        line += &format!(
+            " chain {:5.1} true mask {:5.1} without clipped {:5.1} under the true light {:5.1}",
+            pct(rows.iter().filter(|r| r.2).count()),
+            pct(rows.iter().filter(|r| r.5).count()),
+            pct(rows.iter().filter(|r| r.6).count()),
+            pct(rows.iter().filter(|r| r.7).count()),
+        );
         println!("{line}");
     }
     Ok(())
