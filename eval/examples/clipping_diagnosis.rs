@@ -124,10 +124,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         let share = clipped_share(rgb, (0..truth.len()).filter(|&p| truth[p] != 0));
                         clean_largest = clean_largest.max(share);
                     }
-                    let out = chain.process(
-                        &protocol::frame_of(&r, i as u64, false, object.radius_m()),
-                        rgb,
-                    );
+                    let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
+                    let out = chain.process(&frame, rgb);
+                    payload.resize(2 * rgb.len() / 3, 0);
                     let Some(e) = out.pose().done() else {
                         continue;
                     };
@@ -181,8 +180,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         (&unclipped[..], &indices[..]),
                         (&truth[..], &true_light[..]),
                     ]) {
-                        payload.resize(2 * mask.len(), 0);
-                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
                         let given =
                             Segmented::from_mask(frame.envelope, mask, indices, w, &mut payload)?;
                         if let Some(header) = given
@@ -208,7 +205,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                             .filter(|&(&m, &x)| m != 0 && x != NOT_OBJECT)
                             .count() as f32
                             / mask_px;
-                        let frame = protocol::frame_of(&r, i as u64, false, object.radius_m());
                         let given =
                             Segmented::from_mask(frame.envelope, truth, &relit, w, &mut payload)?;
                         if let Some(header) = given
