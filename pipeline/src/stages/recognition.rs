@@ -11,11 +11,14 @@ use super::{BuildError, StageSettings};
 use crate::frame::FrameHeader;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, StageId};
-use acch_core::{IndexView, ViewDatabase};
+use acch_core::{IndexImage, IndexView, Rect, ViewDatabase};
 use acch_ipc::ZeroCopySend;
+use acch_pose::PoseEstimator;
 use acch_recognition::{
-    CellRect, CountLayout, Detection, Detector, LightSearch, RecognitionModel, RegionCounts,
+    CANDIDATES, CellRect, CountLayout, Detection, Detector, LightSearch, RecognitionModel,
+    RegionCounts,
 };
+use acch_segmentation::Segmenter;
 
 /// A rectangle of grid cells, `[x0, x1) x [y0, y1)`.
 #[repr(C)]
@@ -142,6 +145,9 @@ impl<'a> RecognitionPayload<'a> {
 /// The recognition stage.
 pub struct Recognition {
     lights: LightSearch,
+    /// Chooses a single image's exposure by the pose (with the search
+    /// over every light only).
+    by_pose: Option<LightByPose>,
     /// The next frame's indices under the training light are already in
     /// the payload ([`Recognition::indices_written`]).
     indices_written: bool,
@@ -154,13 +160,26 @@ impl Recognition {
     /// The stage for `db` on frames of `settings`.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
         let model = recognition_model(db)?;
+        let by_pose = if settings.light_search >= CANDIDATES {
+            Some(LightByPose::new(db, settings)?)
+        } else {
+            None
+        };
         Ok(Recognition {
             lights: LightSearch::new(&db.palette, settings.light_search),
+            by_pose,
             indices_written: false,
             detector: Detector::new(model, settings.width, settings.height)?,
             scale: settings.scale(db),
             size: (settings.width, settings.height),
         })
+    }
+
+    /// The stage keeping the light recognition scores best, not choosing
+    /// again by the pose (the evaluations compare the two; the search
+    /// over every light otherwise chooses by the pose).
+    pub fn choose_light_by_recognition(&mut self) {
+        self.by_pose = None;
     }
 
     /// The detector (heat map and best score of the last frame).
@@ -179,6 +198,71 @@ impl Recognition {
     /// Pixels of a frame: the payload's leading index bytes.
     pub fn pixels(&self) -> usize {
         self.size.0 as usize * self.size.1 as usize
+    }
+}
+
+/// The light of a single image chosen by how much of the object's region
+/// a training view explains ([`PoseEstimator::explained`]), over the light
+/// recognition chose and its neighbours, the region grown once under the
+/// light recognition chose. Recognition's own choice, the light whose
+/// window scores best, favours lights that map an over exposed frame's
+/// clipped inks to wrong colours (docs/accuracy.md: over exposure is lost
+/// in matching).
+struct LightByPose {
+    model: RecognitionModel,
+    segmenter: Segmenter,
+    estimator: PoseEstimator,
+    /// The region's mask and one exposure's indices over the region's box.
+    mask: Vec<u8>,
+    crop: IndexImage,
+}
+
+impl LightByPose {
+    fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
+        Ok(LightByPose {
+            model: recognition_model(db)?,
+            segmenter: Segmenter::new(settings.width, settings.height)?,
+            estimator: PoseEstimator::new(db.clone())?.with_roll_search(settings.roll_search_deg),
+            mask: Vec::new(),
+            crop: IndexImage::default(),
+        })
+    }
+
+    /// `found` (on `indices`, under the light in use) under the exposure
+    /// whose indices a view explains best; `found` itself when no region
+    /// grows from it.
+    fn choose(
+        &mut self,
+        lights: &mut LightSearch,
+        detector: &mut Detector,
+        (rgb, (w, h)): (&[u8], (u32, u32)),
+        (indices, found): (&mut [u8], Detection),
+        scale: Option<f32>,
+    ) -> Option<Detection> {
+        let Some(counts) = detector.region_counts(&found) else {
+            return Some(found);
+        };
+        let view = IndexView::new(w, h, indices).expect("sized by the stage");
+        let Some(segment) = self.segmenter.segment(view, &counts, &self.model, &found) else {
+            return Some(found);
+        };
+        let roi = PixelRect::from(segment.roi.clamp_to(w, h));
+        self.mask.resize(roi.area(), 0);
+        super::segmentation::crop(segment.mask, w, roi, &mut self.mask);
+        let (crop, mask, estimator) = (&mut self.crop, &self.mask, &mut self.estimator);
+        let whole = Rect {
+            x: 0,
+            y: 0,
+            width: roi.width,
+            height: roi.height,
+        };
+        lights.choose_light(detector, rgb, (w, h), (indices, found), scale, |frame| {
+            crop.width = roi.width;
+            crop.height = roi.height;
+            crop.data.resize(roi.area(), 0);
+            super::segmentation::crop(frame, w, roi, &mut crop.data);
+            estimator.explained(crop, mask, whole, scale)
+        })
     }
 }
 
@@ -224,9 +308,21 @@ impl Stage for Recognition {
             (index_out, written),
             self.scale,
         );
-        let Some(d) = found else {
+        let Some(mut d) = found else {
             return Ok(Outcome::Nothing);
         };
+        if let Some(by_pose) = &mut self.by_pose {
+            let Some(chosen) = by_pose.choose(
+                &mut self.lights,
+                &mut self.detector,
+                (rgb, (w, h)),
+                (index_out, d),
+                self.scale,
+            ) else {
+                return Ok(Outcome::Nothing);
+            };
+            d = chosen;
+        }
         let region = self.detector.region_counts(&d).ok_or(Fault::Payload)?;
         if !region.publish(counts_out) {
             return Err(Fault::Payload);

@@ -133,7 +133,7 @@ impl<'a> RegionPayload<'a> {
 
 /// Copies `roi` of a `width`-pixel-wide one-byte-per-pixel frame into
 /// `out` (`roi.area()` bytes, row-major).
-fn crop(frame: &[u8], width: u32, roi: PixelRect, out: &mut [u8]) {
+pub(super) fn crop(frame: &[u8], width: u32, roi: PixelRect, out: &mut [u8]) {
     let (w, rw) = (width as usize, roi.width as usize);
     if rw == 0 {
         return;

@@ -423,6 +423,34 @@ impl PoseEstimator {
         })
     }
 
+    /// How much of the masked object in `roi` a training view explains:
+    /// the share of its pixels the palette mapped to an object colour,
+    /// times the best view's match value. It compares one region's
+    /// indices under several lights: the match value alone favours a
+    /// light that maps few pixels (what is left matches some view well),
+    /// the share alone one that maps many to the wrong colours. `None`
+    /// when the region holds no object colour pairs.
+    pub fn explained(
+        &mut self,
+        image: &IndexImage,
+        mask: &[u8],
+        roi: Rect,
+        scale: Option<f32>,
+    ) -> Option<f32> {
+        let roi = roi.clamp_to(image.width, image.height);
+        let w = image.width as usize;
+        let (mut object, mut mapped) = (0u32, 0u32);
+        for y in roi.y as usize..(roi.y + roi.height) as usize {
+            let span = y * w + roi.x as usize..y * w + (roi.x + roi.width) as usize;
+            for (&m, &i) in mask[span.clone()].iter().zip(&image.data[span]) {
+                object += u32::from(m != 0);
+                mapped += u32::from(m != 0 && i != acch_core::NOT_OBJECT);
+            }
+        }
+        let e = self.estimate(image, Some(mask), roi, scale, Refinement::WinnerTakesAll)?;
+        Some(mapped as f32 / object.max(1) as f32 * e.best_value)
+    }
+
     /// Index of the best view of the last response.
     pub fn best(&self) -> usize {
         argmax(&self.response)
@@ -749,5 +777,56 @@ mod tests {
         let g = |x: f32| -(x - 70.0) * (x - 70.0);
         let v = parabola_vertex((40.0, g(40.0)), (50.0, g(50.0)), (60.0, g(60.0))).unwrap();
         assert!((v - 70.0).abs() < 1e-3, "{v}");
+    }
+
+    #[test]
+    fn what_a_view_explains_is_the_share_mapped_times_the_match_value() {
+        let stripes = |x: usize| x < 48;
+        let a = painted(stripes, 0);
+        let full = vec![255u8; 64 * 64];
+        let config = train::TrainConfig {
+            colours: 8,
+            ..train::TrainConfig::default()
+        };
+        let views = [train::LabelledView::new(
+            &a,
+            &full,
+            (64, 64),
+            (60.0, 0.0),
+            1.0,
+        )];
+        let db = train::build_database("o", 1.0, &views, &config).unwrap();
+        let mut e = PoseEstimator::new(db.clone()).unwrap();
+        let roi = Rect {
+            x: 0,
+            y: 0,
+            width: 64,
+            height: 64,
+        };
+        let mut index = db.palette.quantise(&a, 64, 64);
+        let whole = e.explained(&index, &full, roi, Some(1.0)).unwrap();
+        let value = |e: &mut PoseEstimator, index: &IndexImage| {
+            e.estimate(
+                index,
+                Some(&full),
+                roi,
+                Some(1.0),
+                Refinement::WinnerTakesAll,
+            )
+            .unwrap()
+            .best_value
+        };
+        assert_eq!(whole, value(&mut e, &index));
+        // A quarter of the pixels mapped to no colour, as under a light
+        // that loses them: the share falls to three quarters.
+        for px in index.data.iter_mut().step_by(4) {
+            *px = acch_core::NOT_OBJECT;
+        }
+        let partly = e.explained(&index, &full, roi, Some(1.0)).unwrap();
+        let v = value(&mut e, &index);
+        assert!((partly - 0.75 * v).abs() < 1e-6, "{partly} vs {v}");
+        // Nothing mapped: nothing to explain.
+        index.data.fill(acch_core::NOT_OBJECT);
+        assert_eq!(e.explained(&index, &full, roi, Some(1.0)), None);
     }
 }

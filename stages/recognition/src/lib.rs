@@ -61,7 +61,7 @@ pub use model::{
 #[cfg(test)]
 mod tests {
     use super::*;
-    use acch_core::{ColourSpace, IndexImage, Palette};
+    use acch_core::{ColourSpace, IndexImage, NOT_OBJECT, Palette};
     use acch_pose::train::LabelledView;
 
     const COLOURS: [[u8; 3]; 4] = [[220, 30, 30], [30, 200, 40], [40, 40, 220], [230, 220, 40]];
@@ -214,6 +214,53 @@ mod tests {
                 .detect(&mut det, &empty, (W, H), (&mut indices, false), None)
                 .is_none()
         );
+    }
+
+    #[test]
+    fn a_light_rated_better_is_taken_with_its_indices_and_one_that_loses_the_object_is_not() {
+        let (rgb, _) = frame(Some((84, 24)), noisy);
+        let dim: Vec<u8> = rgb
+            .iter()
+            .map(|&c| acch_core::light::relight(c, EXPOSURES[2]))
+            .collect();
+        let mut det = Detector::new(model(), W, H).unwrap();
+        let mut indices = vec![0u8; (W * H) as usize];
+        let mut search = LightSearch::new(&palette(), CANDIDATES);
+        let found = search
+            .detect(&mut det, &dim, (W, H), (&mut indices, false), None)
+            .expect("found under the light searched");
+        let (before, before_indices) = (search.gains(), indices.clone());
+        // Rated best: the light in use (the first rated) keeps all.
+        let mut calls = 0;
+        let kept = search.choose_light(&mut det, &dim, (W, H), (&mut indices, found), None, |_| {
+            calls += 1;
+            Some(if calls == 1 { 1.0 } else { 0.0 })
+        });
+        assert_eq!(calls, 1 + CANDIDATES);
+        assert_eq!((kept, search.gains()), (Some(found), before));
+        assert_eq!(indices, before_indices);
+        // Rated best: the light mapping least of the frame, the darkest
+        // exposure's neighbour that loses the object. Not taken.
+        let lost = |idx: &[u8]| Some(idx.iter().filter(|&&i| i == NOT_OBJECT).count() as f32);
+        let kept = search.choose_light(&mut det, &dim, (W, H), (&mut indices, found), None, lost);
+        assert_eq!((kept, search.gains()), (Some(found), before));
+        assert_eq!(indices, before_indices);
+        // Rated best: a neighbour under which the object still counts
+        // (the next exposure, up or down, maps these far-apart colours as
+        // well). Taken, with its own indices and detection.
+        let mut calls = 0;
+        let moved = search
+            .choose_light(&mut det, &dim, (W, H), (&mut indices, found), None, |_| {
+                calls += 1;
+                Some(if calls == 2 { 1.0 } else { 0.0 })
+            })
+            .expect("still found");
+        let after = search.gains();
+        assert_ne!(after, before);
+        let relit = palette().relit(after).unwrap().quantise(&dim, W, H);
+        assert_eq!(indices, relit.data);
+        let mut fresh = Detector::new(model(), W, H).unwrap();
+        assert_eq!(fresh.detect(&relit, None), Some(moved));
     }
 
     #[test]

@@ -10,7 +10,7 @@
 
 use crate::{Detection, Detector};
 use acch_core::light::{TRAINING_LIGHT_K, colour_temperature_gains};
-use acch_core::{IndexView, Palette};
+use acch_core::{IndexView, NOT_OBJECT, Palette};
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -71,6 +71,9 @@ pub struct LightSearch {
     /// Where the next weak frame's tries start in its candidate list (a
     /// frame with a small budget goes on where the last one stopped).
     offset: usize,
+    /// A frame's indices under a light being rated
+    /// ([`LightSearch::choose_light`]).
+    scratch: Vec<u8>,
 }
 
 impl LightSearch {
@@ -88,6 +91,7 @@ impl LightSearch {
             current: TRAINING,
             per_frame,
             offset: 0,
+            scratch: Vec::new(),
         }
     }
 
@@ -138,8 +142,6 @@ impl LightSearch {
     ) -> Option<Detection> {
         let train_score = detector.model().train_score;
         let mut training_indices_ready = quantised;
-        // A detection counts under the training light at the model's
-        // threshold, under any other at RELIT_SCORE_FRACTION.
         let mut run =
             |at: (usize, usize), palette: &Palette, detector: &mut Detector, indices: &mut [u8]| {
                 // Only the first run may find the indices written.
@@ -150,7 +152,7 @@ impl LightSearch {
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
                     .detect(view, scale)
-                    .filter(|d| at == TRAINING || d.score >= RELIT_SCORE_FRACTION * train_score);
+                    .filter(|d| counts(at, d, train_score));
                 (found, detector.best_score())
             };
         if self.per_frame >= CANDIDATES {
@@ -199,6 +201,71 @@ impl LightSearch {
         }
         run(best, self.palette(best), detector, indices).0
     }
+}
+
+impl LightSearch {
+    /// Chooses again, among the light in use and its neighbours (every
+    /// other exposure and colour temperature), the one under which `rate`
+    /// rates the frame's indices best (how much of the object's region a
+    /// training view explains, say: recognition's score picks lights that
+    /// make the frame look like the object somewhere, not like one view
+    /// of it). `indices` hold the frame under the light in use, where
+    /// [`detect`](Self::detect) found `found`. When another light wins and
+    /// recognition still counts the object under it, that light becomes
+    /// the light in use, its indices are left in `indices`, the detector
+    /// holds its counts and its detection is returned; otherwise all
+    /// stays as it was.
+    pub fn choose_light(
+        &mut self,
+        detector: &mut Detector,
+        rgb: &[u8],
+        (width, height): (u32, u32),
+        (indices, found): (&mut [u8], Detection),
+        scale: Option<f32>,
+        mut rate: impl FnMut(&[u8]) -> Option<f32>,
+    ) -> Option<Detection> {
+        let in_use = self.current;
+        let mut best = (in_use, rate(indices).unwrap_or(f32::MIN));
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.resize(indices.len(), NOT_OBJECT);
+        for k in 0..CANDIDATES {
+            let at = self.candidate(k);
+            self.palette(at)
+                .quantise_into_slice(rgb, width, height, &mut scratch);
+            if let Some(v) = rate(&scratch)
+                && v > best.1
+            {
+                best = (at, v);
+            }
+        }
+        self.scratch = scratch;
+        if best.0 == in_use {
+            return Some(found);
+        }
+        let train_score = detector.model().train_score;
+        for at in [best.0, in_use] {
+            self.palette(at)
+                .quantise_into_slice(rgb, width, height, indices);
+            let view = IndexView::new(width, height, indices).expect("sized by the caller");
+            if let Some(d) = detector
+                .detect(view, scale)
+                .filter(|d| counts(at, d, train_score))
+            {
+                self.current = at;
+                return Some(d);
+            }
+        }
+        // The light in use found `found` on these very indices before; if
+        // it did not again, "not found" is the safe answer.
+        None
+    }
+}
+
+/// Whether a detection under light `at` counts: under the training light
+/// at the model's threshold, under any other at [`RELIT_SCORE_FRACTION`]
+/// of the training score.
+fn counts(at: (usize, usize), d: &Detection, train_score: f32) -> bool {
+    at == TRAINING || d.score >= RELIT_SCORE_FRACTION * train_score
 }
 
 /// Relit palettes kept per process, at most this many (about 256 KB
