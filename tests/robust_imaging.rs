@@ -124,7 +124,7 @@ fn views_lit_from_every_side_hold_a_light_turned_where_the_default_fails() {
 }
 
 #[test]
-fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
+fn render_takes_the_light_sensor_motion_jpeg_and_occluder_and_names_bad_values() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("v");
     let render = |extra: &[&str]| {
@@ -179,7 +179,20 @@ fn render_takes_the_light_jpeg_and_occluder_and_names_bad_values() {
     ok(&render(&["--light-azimuth-deg", "180"]));
     assert_eq!(mask_pixels(), clean_mask);
     assert_ne!(mean(), clean);
+    // The sensor and the motion: other bytes, the same object pixels.
+    for extra in [
+        &["--full-well-e", "400", "--read-noise-e", "3"][..],
+        &["--motion-blur-px", "6", "--motion-blur-deg", "30"],
+    ] {
+        ok(&render(extra));
+        assert_eq!(mask_pixels(), clean_mask, "{extra:?}");
+        assert_ne!(mean(), clean, "{extra:?}");
+    }
     for (flag, value) in [
+        ("--full-well-e", "-400"),
+        ("--read-noise-e", "nan"),
+        ("--motion-blur-px", "-2"),
+        ("--motion-blur-deg", "720"),
         ("--light-azimuth-deg", "400"),
         ("--colour-temp-k", "200"),
         ("--occlusion", "1.5"),

@@ -34,7 +34,7 @@ pub struct Family {
 
 /// The families and levels measured; the clean scene is level "clean" of
 /// every family's row set.
-pub const FAMILIES: [Family; 9] = [
+pub const FAMILIES: [Family; 11] = [
     Family {
         name: "exposure",
         unit: "x linear light",
@@ -59,6 +59,16 @@ pub const FAMILIES: [Family; 9] = [
         name: "blur",
         unit: "sigma, px",
         levels: &[0.5, 1.0, 2.0],
+    },
+    Family {
+        name: "motion_blur",
+        unit: "px streak at 30 degrees",
+        levels: &[2.0, 4.0, 8.0],
+    },
+    Family {
+        name: "sensor_noise",
+        unit: "electrons at white (full well / gain), read noise 3 e",
+        levels: &[4000.0, 1000.0, 400.0],
     },
     Family {
         name: "jpeg",
@@ -152,6 +162,14 @@ pub struct RobustReport {
 }
 
 /// The scene configuration of `family` at `level` (None: clean).
+/// The motion blur family's direction: neither along the image's rows nor
+/// its columns, where an object's printed bands would hide it.
+const MOTION_BLUR_DEG: f32 = 30.0;
+
+/// The sensor noise family's read noise, electrons (a phone-class sensor's
+/// 2-5).
+const READ_NOISE_E: f32 = 3.0;
+
 fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneConfig {
     let fx = &mut config.effects;
     match condition {
@@ -162,6 +180,14 @@ fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneCo
         Some(("noise", v)) => fx.noise_sigma = v as f32,
         Some(("blur", v)) => fx.blur_sigma = v as f32,
         Some(("jpeg", v)) => fx.jpeg_quality = v as u8,
+        Some(("motion_blur", v)) => {
+            fx.motion_blur_px = v as f32;
+            fx.motion_blur_deg = MOTION_BLUR_DEG;
+        }
+        Some(("sensor_noise", v)) => {
+            fx.full_well_e = v as f32;
+            fx.read_noise_e = READ_NOISE_E;
+        }
         Some(("occlusion", v)) => config.occlusion = v as f32,
         Some(("light_direction", v)) => config.light_azimuth_deg = v as f32,
         // The camera's distance is the view's, not the scene's.

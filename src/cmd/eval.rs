@@ -116,8 +116,9 @@ pub struct EvalArgs {
     #[arg(long, value_name = "SET", default_value = "held-out")]
     textures: acch_capture::TextureSet,
     /// robust: the perturbation families to measure, comma-separated
-    /// (exposure, brightness, colour_temperature, noise, blur, jpeg,
-    /// occlusion, distance); default: all.
+    /// (exposure, brightness, colour_temperature, noise, blur,
+    /// motion_blur, sensor_noise, jpeg, occlusion, distance,
+    /// light_direction); default: all.
     #[arg(long, value_name = "NAMES", value_delimiter = ',')]
     families: Vec<String>,
     /// robust: measure over several objects and pool the rows; multi: the

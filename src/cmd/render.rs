@@ -128,6 +128,48 @@ pub struct RenderArgs {
     #[arg(long, value_name = "Q", default_value_t = 0)]
     jpeg_quality: u8,
 
+    /// Motion blur: every pixel the mean along a straight streak this many
+    /// pixels long (the camera or the object moving while the shutter is
+    /// open), in the direction of --motion-blur-deg. 0 = none.
+    #[arg(
+        long,
+        value_name = "PX",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    motion_blur_px: f32,
+
+    /// Direction of the motion streak, degrees from the image's x axis
+    /// towards its y axis (down).
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    motion_blur_deg: f32,
+
+    /// Sensor shot noise: the electrons a pixel collects at white (its
+    /// full well over the gain; 400 is a high gain in dim light, 10000 a
+    /// large sensor at base gain). The noise is Poisson in the electrons,
+    /// so dark colours are relatively noisier than light ones. 0 = none.
+    #[arg(
+        long,
+        value_name = "ELECTRONS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    full_well_e: f32,
+
+    /// Sensor read noise, electrons (with --full-well-e).
+    #[arg(
+        long,
+        value_name = "ELECTRONS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    read_noise_e: f32,
+
     /// Hide this share (0-1) of the object's width behind a dark grey bar
     /// in front of it, full height, at a place drawn per view (a gripper's
     /// finger); the mask keeps what stays visible. 0 = none.
@@ -228,6 +270,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ("--blur", args.blur),
         ("--brightness", args.brightness),
         ("--exposure", args.exposure),
+        ("--motion-blur-px", args.motion_blur_px),
+        ("--full-well-e", args.full_well_e),
+        ("--read-noise-e", args.read_noise_e),
     ] {
         if !(v.is_finite() && v >= 0.0) {
             bail!("{name} {v} must be a finite number >= 0");
@@ -242,6 +287,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             args.light_azimuth_deg,
             -360.0..=360.0,
         ),
+        ("--motion-blur-deg", args.motion_blur_deg, -360.0..=360.0),
     ] {
         if !(v.is_finite() && range.contains(&v)) {
             bail!(
@@ -297,6 +343,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
             colour_temp_k: args.colour_temp_k,
             vignetting: args.vignetting,
             jpeg_quality: args.jpeg_quality,
+            motion_blur_px: args.motion_blur_px,
+            motion_blur_deg: args.motion_blur_deg,
+            full_well_e: args.full_well_e,
+            read_noise_e: args.read_noise_e,
         },
         textures: args.textures,
         occlusion: args.occlusion,
@@ -473,6 +523,10 @@ fn write_truth(
                     "colour_temp_k": args.colour_temp_k,
                     "vignetting": args.vignetting,
                     "jpeg_quality": args.jpeg_quality,
+                    "motion_blur_px": args.motion_blur_px,
+                    "motion_blur_deg": args.motion_blur_deg,
+                    "full_well_e": args.full_well_e,
+                    "read_noise_e": args.read_noise_e,
                     "occlusion": args.occlusion,
                     "light_azimuth_deg": args.light_azimuth_deg,
                 },

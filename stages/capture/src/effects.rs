@@ -1,6 +1,7 @@
 //! Image degradations: the light (exposure, colour temperature,
-//! vignetting), Gaussian blur, a brightness change of the bytes, sensor
-//! noise and JPEG compression.
+//! vignetting), Gaussian and motion blur, the sensor's shot and read
+//! noise, a brightness change of the bytes, additive noise and JPEG
+//! compression.
 
 use acch_core::light::{
     TRAINING_LIGHT_K, colour_temperature_gains, linear_to_srgb, srgb_to_linear,
@@ -10,7 +11,9 @@ use rand_chacha::ChaCha8Rng;
 
 /// Optional degradations applied after rendering, in this order: the light
 /// (on linear colour: exposure, colour temperature, vignetting), blur,
-/// brightness (on the bytes), noise, JPEG. The mask is never affected.
+/// motion blur, the sensor's shot and read noise (on linear colour),
+/// brightness (on the bytes), additive noise, JPEG. The mask is never
+/// affected.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Effects {
     /// Standard deviation of additive, approximately Gaussian per-channel
@@ -38,6 +41,20 @@ pub struct Effects {
     /// JPEG quality 1-100 the frame is compressed with and decoded again;
     /// 0 = none.
     pub jpeg_quality: u8,
+    /// Length in pixels of a straight motion streak (the camera or the
+    /// object moving during the exposure): every pixel is the mean along
+    /// it; 0 = none.
+    pub motion_blur_px: f32,
+    /// Direction of the motion streak, degrees from the image's x axis
+    /// towards y.
+    pub motion_blur_deg: f32,
+    /// Electrons a pixel collects at white (its full well over the
+    /// camera's gain; lower is a higher gain, a noisier image): photon shot
+    /// noise, Poisson in the electrons, so darker colours are relatively
+    /// noisier; 0 = none. Seeded by the frame seed.
+    pub full_well_e: f32,
+    /// Read noise in electrons (with `full_well_e` only).
+    pub read_noise_e: f32,
 }
 
 impl Effects {
@@ -58,6 +75,10 @@ impl Default for Effects {
             colour_temp_k: TRAINING_LIGHT_K,
             vignetting: 0.0,
             jpeg_quality: 0,
+            motion_blur_px: 0.0,
+            motion_blur_deg: 0.0,
+            full_well_e: 0.0,
+            read_noise_e: 0.0,
         }
     }
 }
@@ -79,6 +100,23 @@ pub(crate) fn apply(
     if fx.blur_sigma.is_finite() && fx.blur_sigma > 0.0 {
         blur(rgb, w, h, fx.blur_sigma, tmp);
     }
+    if fx.motion_blur_px.is_finite() && fx.motion_blur_px >= 1.0 {
+        let deg = if fx.motion_blur_deg.is_finite() {
+            fx.motion_blur_deg
+        } else {
+            0.0
+        };
+        motion_blur(rgb, w, h, fx.motion_blur_px, deg, tmp);
+    }
+    if fx.full_well_e.is_finite() && fx.full_well_e > 0.0 {
+        let read = if fx.read_noise_e.is_finite() {
+            fx.read_noise_e.max(0.0)
+        } else {
+            0.0
+        };
+        // Its own stream: the additive noise below draws from the seed.
+        sensor_noise(rgb, fx.full_well_e, read, seed ^ 0x7365_6e73_6f72);
+    }
     let gain = if fx.brightness.is_finite() && fx.brightness >= 0.0 {
         fx.brightness
     } else {
@@ -91,13 +129,9 @@ pub(crate) fn apply(
     };
     if sigma > 0.0 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        // Irwin-Hall sum of four uniform bytes: mean 510, sd 147.8; close to
-        // Gaussian and far cheaper than Box-Muller per channel.
-        let k = sigma / 147.8;
+        let k = sigma / IRWIN_HALL_SD;
         for v in rgb.iter_mut() {
-            let r = rng.next_u32();
-            let s = (r & 0xff) + ((r >> 8) & 0xff) + ((r >> 16) & 0xff) + (r >> 24);
-            let x = *v as f32 * gain + (s as f32 - 510.0) * k;
+            let x = *v as f32 * gain + irwin_hall(&mut rng) * k;
             *v = (x + 0.5).clamp(0.0, 255.0) as u8;
         }
     } else if gain != 1.0 {
@@ -107,6 +141,66 @@ pub(crate) fn apply(
     }
     if (1..=100).contains(&fx.jpeg_quality) {
         jpeg(rgb, w, h, fx.jpeg_quality);
+    }
+}
+
+/// The standard deviation of [`irwin_hall`].
+const IRWIN_HALL_SD: f32 = 147.8;
+
+/// A normal draw of mean 0 and sd [`IRWIN_HALL_SD`], approximately: the
+/// Irwin-Hall sum of four uniform bytes less its mean, close to Gaussian
+/// and far cheaper than Box-Muller per channel.
+fn irwin_hall(rng: &mut ChaCha8Rng) -> f32 {
+    let r = rng.next_u32();
+    let s = (r & 0xff) + ((r >> 8) & 0xff) + ((r >> 16) & 0xff) + (r >> 24);
+    s as f32 - 510.0
+}
+
+/// Shot and read noise: each linear channel's `full_well` electrons at
+/// white, drawn with the Poisson variance of the electrons collected plus
+/// the read noise's (a normal approximation, close above a few electrons).
+fn sensor_noise(rgb: &mut [u8], full_well: f32, read: f32, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
+    for v in rgb.iter_mut() {
+        let electrons = decode[*v as usize] * full_well;
+        let sd = (electrons + read * read).sqrt();
+        let noise = irwin_hall(&mut rng) / IRWIN_HALL_SD * sd;
+        *v = linear_to_srgb((electrons + noise) / full_well);
+    }
+}
+
+/// Motion blur: each pixel the mean of the frame at `length` + 1 points
+/// evenly along a streak through it at `deg` (nearest pixel, borders
+/// clamped).
+fn motion_blur(rgb: &mut [u8], w: usize, h: usize, length: f32, deg: f32, tmp: &mut Vec<f32>) {
+    let length = length.min(2.0 * MAX_RADIUS as f32);
+    let taps = length.ceil() as usize + 1;
+    let (dy, dx) = deg.to_radians().sin_cos();
+    let offsets: Vec<(isize, isize)> = (0..taps)
+        .map(|i| {
+            let t = (i as f32 / (taps - 1) as f32 - 0.5) * length;
+            ((t * dx).round() as isize, (t * dy).round() as isize)
+        })
+        .collect();
+    tmp.clear();
+    tmp.resize(rgb.len(), 0.0);
+    for y in 0..h {
+        for &(ox, oy) in &offsets {
+            let sy = (y as isize + oy).clamp(0, h as isize - 1) as usize;
+            let src = &rgb[sy * w * 3..(sy + 1) * w * 3];
+            let dst = &mut tmp[y * w * 3..(y + 1) * w * 3];
+            for x in 0..w {
+                let sx = (x as isize + ox).clamp(0, w as isize - 1) as usize;
+                for c in 0..3 {
+                    dst[x * 3 + c] += src[sx * 3 + c] as f32;
+                }
+            }
+        }
+    }
+    let k = 1.0 / taps as f32;
+    for (o, &a) in rgb.iter_mut().zip(tmp.iter()) {
+        *o = (a * k + 0.5).clamp(0.0, 255.0) as u8;
     }
 }
 

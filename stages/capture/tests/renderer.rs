@@ -370,6 +370,93 @@ fn effects_do_what_they_say() {
 }
 
 #[test]
+fn motion_blur_smears_along_its_direction_only() {
+    let v = view(60.0, 30.0);
+    let render = |fx| renderer("fruitbox", Background::C, fx, 0).render(&v, 0);
+    let base = render(Effects::default());
+    let streak = |deg| {
+        render(Effects {
+            motion_blur_px: 8.0,
+            motion_blur_deg: deg,
+            ..Effects::default()
+        })
+    };
+    let (w, h) = base.image.dimensions();
+    // Mean absolute difference between neighbours one pixel apart along x
+    // and along y.
+    let grad = |img: &image::RgbImage| {
+        let (mut gx, mut gy) = (0.0f64, 0.0f64);
+        for y in 0..h - 1 {
+            for x in 0..w - 1 {
+                let p = img.get_pixel(x, y).0;
+                let (px, py) = (img.get_pixel(x + 1, y).0, img.get_pixel(x, y + 1).0);
+                for c in 0..3 {
+                    gx += (px[c] as f64 - p[c] as f64).abs();
+                    gy += (py[c] as f64 - p[c] as f64).abs();
+                }
+            }
+        }
+        (gx, gy)
+    };
+    let (bx, by) = grad(&base.image);
+    let (hx, hy) = grad(&streak(0.0).image);
+    let (vx, vy) = grad(&streak(90.0).image);
+    // A horizontal streak smooths along x far more than along y (it
+    // smooths y's differences too, averaging each row's texture), a
+    // vertical one the other way round.
+    let (hx, hy, vx, vy) = (hx / bx, hy / by, vx / bx, vy / by);
+    eprintln!("kept of the gradient: horizontal x {hx:.2} y {hy:.2}, vertical x {vx:.2} y {vy:.2}");
+    assert!(hx < 0.35 && hx < 0.6 * hy, "{hx} {hy}");
+    assert!(vy < 0.35 && vy < 0.6 * vx, "{vy} {vx}");
+    assert_eq!(streak(45.0).mask.as_raw(), base.mask.as_raw());
+}
+
+#[test]
+fn shot_noise_is_relatively_larger_in_dark_colours_and_follows_the_well() {
+    let v = view(60.0, 30.0);
+    let render = |full_well_e, seed| {
+        renderer(
+            "fruitbox",
+            Background::C,
+            Effects {
+                full_well_e,
+                read_noise_e: 3.0,
+                ..Effects::default()
+            },
+            0,
+        )
+        .render(&v, seed)
+    };
+    let base = renderer("fruitbox", Background::C, Effects::default(), 0).render(&v, 0);
+    // The noise's sd in grey levels over pixels of dark (< 60) and light
+    // (> 180) bytes.
+    let sd = |img: &image::RgbImage, dark: bool| {
+        let d: Vec<f64> = img
+            .as_raw()
+            .iter()
+            .zip(base.image.as_raw())
+            .filter(|&(_, &b)| if dark { b < 60 } else { b > 180 && b < 250 })
+            .map(|(&a, &b)| a as f64 - b as f64)
+            .collect();
+        assert!(d.len() > 1000, "{} pixels", d.len());
+        let m = d.iter().sum::<f64>() / d.len() as f64;
+        (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / d.len() as f64).sqrt()
+    };
+    let (low, high) = (render(400.0, 5), render(4000.0, 5));
+    // In linear light the sd is sqrt(e) over e of the signal: relatively
+    // larger in the dark, and the sRGB curve's steepness there shows it
+    // in bytes too.
+    let (dark, light) = (sd(&low.image, true), sd(&low.image, false));
+    assert!(dark > light, "dark {dark} light {light}");
+    // Ten times the well: about sqrt(10) less noise.
+    let ratio = sd(&low.image, false) / sd(&high.image, false);
+    assert!((2.4..4.0).contains(&ratio), "{ratio}");
+    assert_ne!(render(400.0, 6).image.as_raw(), low.image.as_raw());
+    assert_eq!(render(400.0, 5).image.as_raw(), low.image.as_raw());
+    assert_eq!(low.mask.as_raw(), base.mask.as_raw());
+}
+
+#[test]
 fn textured_backgrounds_have_their_colours() {
     let mean_bg = |bg: Background| {
         let out = renderer("tricolor", bg, Effects::default(), 0).render(&view(70.0, 0.0), 0);
