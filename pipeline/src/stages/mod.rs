@@ -19,7 +19,9 @@ use acch_core::ViewDatabase;
 
 /// Lights recognition tries in a weak single image when the light search
 /// is on (`acch eval --light-search`, the robust protocol): all of them
-/// ([`StageSettings::light_search`]). It is off by default: on an object
+/// ([`StageSettings::light_search`]), the light then chosen again by the
+/// pose (docs/accuracy.md, "The light chosen by the pose"). It is off by
+/// default: on an object
 /// of flat, exact colours it turns "not found" into wrong estimates the
 /// confidence network accepts (docs/accuracy.md).
 pub const SINGLE_IMAGE_LIGHT_SEARCH: usize = acch_recognition::CANDIDATES;

@@ -145,7 +145,7 @@ impl<'a> RecognitionPayload<'a> {
 /// The recognition stage.
 pub struct Recognition {
     lights: LightSearch,
-    /// Chooses a single image's exposure by the pose (with the search
+    /// Chooses a single image's light again by the pose (with the search
     /// over every light only).
     by_pose: Option<LightByPose>,
     /// The next frame's indices under the training light are already in
@@ -212,7 +212,7 @@ struct LightByPose {
     model: RecognitionModel,
     segmenter: Segmenter,
     estimator: PoseEstimator,
-    /// The region's mask and one exposure's indices over the region's box.
+    /// The region's mask and one light's indices over the region's box.
     mask: Vec<u8>,
     crop: IndexImage,
 }
@@ -228,7 +228,7 @@ impl LightByPose {
         })
     }
 
-    /// `found` (on `indices`, under the light in use) under the exposure
+    /// `found` (on `indices`, under the light in use) under the light
     /// whose indices a view explains best; `found` itself when no region
     /// grows from it.
     fn choose(

@@ -7,6 +7,10 @@
 //! weak or lost under the light in use, quantises the frame under the
 //! neighbouring lights and keeps the one recognition scores best: the
 //! light that makes the frame look most like the object's training views.
+//! A single image's light is then chosen again among it and its
+//! neighbours by a rating its caller gives ([`LightSearch::choose_light`];
+//! the pipeline rates how much of the object's region a training view
+//! explains).
 
 use crate::{Detection, Detector};
 use acch_core::light::{TRAINING_LIGHT_K, colour_temperature_gains};
@@ -201,9 +205,7 @@ impl LightSearch {
         }
         run(best, self.palette(best), detector, indices).0
     }
-}
 
-impl LightSearch {
     /// Chooses again, among the light in use and its neighbours (every
     /// other exposure and colour temperature), the one under which `rate`
     /// rates the frame's indices best (how much of the object's region a
