@@ -103,7 +103,8 @@ pub struct EvalArgs {
     roll_search_deg: Option<f64>,
     /// --bop, --labels: lights (exposures and colour temperatures)
     /// recognition tries on an image whose object is weak or lost under
-    /// the training light; 0 (the default): none; 20: all. It finds
+    /// the training light; 0 (the default): none; 20: all, the light then
+    /// chosen again by how much of the region a view explains. It finds
     /// textured objects under other light, but on flat-coloured ones
     /// makes wrong estimates that are accepted (docs/accuracy.md).
     #[arg(long, value_name = "N", default_value_t = 0)]
