@@ -177,16 +177,14 @@ fn motion_blur(rgb: &mut [u8], w: usize, h: usize, length: f32, deg: f32, tmp: &
     let length = length.min(2.0 * MAX_RADIUS as f32);
     let taps = length.ceil() as usize + 1;
     let (dy, dx) = deg.to_radians().sin_cos();
-    let offsets: Vec<(isize, isize)> = (0..taps)
-        .map(|i| {
-            let t = (i as f32 / (taps - 1) as f32 - 0.5) * length;
-            ((t * dx).round() as isize, (t * dy).round() as isize)
-        })
-        .collect();
+    let offset = |i: usize| {
+        let t = (i as f32 / (taps - 1) as f32 - 0.5) * length;
+        ((t * dx).round() as isize, (t * dy).round() as isize)
+    };
     tmp.clear();
     tmp.resize(rgb.len(), 0.0);
     for y in 0..h {
-        for &(ox, oy) in &offsets {
+        for (ox, oy) in (0..taps).map(offset) {
             let sy = (y as isize + oy).clamp(0, h as isize - 1) as usize;
             let src = &rgb[sy * w * 3..(sy + 1) * w * 3];
             let dst = &mut tmp[y * w * 3..(y + 1) * w * 3];
