@@ -4,7 +4,8 @@
 //! whole resembles the visible part takes it often enough to tell the two
 //! apart on the same scenes, so the check can fail. True visible masks, so
 //! the matching alone is measured; generated objects of the development
-//! seed (docs/accuracy.md, "An occluded object").
+//! seed (docs/accuracy.md, "An occluded object"). The chain's region holds
+//! both parts of an object the bar parts.
 
 use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
 use acch_eval::protocol::{self, fails};
@@ -64,4 +65,53 @@ fn visible_part_matching_holds_an_occluded_view_where_the_normalised_match_fails
         share(normalised) >= share(visible) + 0.05,
         "normalised matching failed {normalised}, visible-part {visible}, of {scenes}"
     );
+}
+
+/// A bar across an object leaves it in two parts: the chain's region holds
+/// both (segmentation keeps every large part), so it misses little of what
+/// stays visible. Measured on these 72 scenes: 1.7 % missed, and 4.8 % when
+/// segmentation keeps the largest part alone, so the check can fail
+/// (docs/accuracy.md, "An object parted by an occluder").
+#[test]
+fn the_region_of_an_object_a_bar_parts_holds_both_parts() {
+    let (mut visible, mut missed) = (0usize, 0usize);
+    for k in 3000..3004 {
+        let object = Arc::new(Object::builtin(&format!("generated-{k}")).unwrap());
+        let (db, _) = acch_eval::train::cached_database(&object, None).unwrap();
+        let mut chain = protocol::chain(&db).unwrap();
+        for (b, bg) in ["A", "B", "C"].iter().enumerate() {
+            let background: Background = bg.parse().unwrap();
+            let mut config =
+                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+            config.occlusion = 0.2;
+            let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
+            let renderer = Renderer::new(config, seed);
+            let poses = ViewSpec::Random { n: 6 }.views(acch_capture::DEFAULT_DISTANCE, seed);
+            for (i, v) in poses.iter().enumerate() {
+                let r = renderer.render(v, acch_capture::frame_seed(seed, i));
+                let w = r.image.width();
+                chain.process(
+                    &protocol::frame_of(&r, i as u64, false, object.radius_m()),
+                    r.image.as_raw(),
+                );
+                let region = chain.last_region().expect("a region is grown");
+                let held = |p: usize| {
+                    let (x, y) = ((p % w as usize) as u32, (p / w as usize) as u32);
+                    let roi = region.roi;
+                    (roi.x..roi.x + roi.width).contains(&x)
+                        && (roi.y..roi.y + roi.height).contains(&y)
+                        && region.mask[((y - roi.y) * roi.width + x - roi.x) as usize] != 0
+                };
+                for (p, &m) in r.mask.as_raw().iter().enumerate() {
+                    if m != 0 {
+                        visible += 1;
+                        missed += !held(p) as usize;
+                    }
+                }
+            }
+        }
+    }
+    let share = missed as f64 / visible as f64;
+    eprintln!("the region misses {share:.3} of the visible object at 20 % occlusion");
+    assert!(share <= 0.03, "missed {missed} of {visible} visible pixels");
 }
