@@ -89,24 +89,17 @@ fn the_region_of_an_object_a_bar_parts_holds_both_parts() {
             let poses = ViewSpec::Random { n: 6 }.views(acch_capture::DEFAULT_DISTANCE, seed);
             for (i, v) in poses.iter().enumerate() {
                 let r = renderer.render(v, acch_capture::frame_seed(seed, i));
-                let w = r.image.width();
+                let (w, h) = r.image.dimensions();
                 chain.process(
                     &protocol::frame_of(&r, i as u64, false, object.radius_m()),
                     r.image.as_raw(),
                 );
                 let region = chain.last_region().expect("a region is grown");
-                let held = |p: usize| {
-                    let (x, y) = ((p % w as usize) as u32, (p / w as usize) as u32);
-                    let roi = region.roi;
-                    (roi.x..roi.x + roi.width).contains(&x)
-                        && (roi.y..roi.y + roi.height).contains(&y)
-                        && region.mask[((y - roi.y) * roi.width + x - roi.x) as usize] != 0
-                };
-                for (p, &m) in r.mask.as_raw().iter().enumerate() {
-                    if m != 0 {
-                        visible += 1;
-                        missed += !held(p) as usize;
-                    }
+                let mut grown = Vec::new();
+                region.frame_mask(w, h, &mut grown);
+                for (&t, &g) in r.mask.as_raw().iter().zip(&grown) {
+                    visible += (t != 0) as usize;
+                    missed += (t != 0 && g == 0) as usize;
                 }
             }
         }

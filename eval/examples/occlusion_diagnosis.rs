@@ -86,14 +86,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         None => chain_fail += 1,
                     }
                     if let Some(region) = chain.last_region() {
-                        let mut grown = vec![0u8; (w * h) as usize];
-                        let roi = region.roi;
-                        for y in 0..roi.height {
-                            for x in 0..roi.width {
-                                let m = region.mask[(y * roi.width + x) as usize];
-                                grown[((roi.y + y) * w + roi.x + x) as usize] = m;
-                            }
-                        }
+                        let mut grown = Vec::new();
+                        region.frame_mask(w, h, &mut grown);
                         bar_in += hidden.iter().filter(|&&p| grown[p] != 0).count();
                         iou_sum += protocol::mask_iou(&grown, r.mask.as_raw());
                     }

@@ -95,13 +95,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     );
                     let mut grown = vec![0u8; (w * h) as usize];
                     if let Some(region) = chain.last_region() {
-                        let roi = region.roi;
-                        for y in 0..roi.height {
-                            for x in 0..roi.width {
-                                grown[((roi.y + y) * w + roi.x + x) as usize] =
-                                    region.mask[(y * roi.width + x) as usize];
-                            }
-                        }
+                        region.frame_mask(w, h, &mut grown);
                     }
                     scenes[s] += 1;
                     {

@@ -81,13 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let visible = r.mask.as_raw();
                     let mut grown = vec![0u8; (w * h) as usize];
                     if let Some(region) = chain.last_region() {
-                        let roi = region.roi;
-                        for y in 0..roi.height {
-                            for x in 0..roi.width {
-                                let m = region.mask[(y * roi.width + x) as usize];
-                                grown[((roi.y + y) * w + roi.x + x) as usize] = m;
-                            }
-                        }
+                        region.frame_mask(w, h, &mut grown);
                     }
                     let mut held = [0u32; 256];
                     for p in 0..(w * h) as usize {
