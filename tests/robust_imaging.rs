@@ -60,10 +60,15 @@ fn the_light_search_holds_where_the_training_light_alone_loses_the_object() {
             "{off}"
         );
     }
-    // Clean scenes are the same with and without the search.
+    // Clean scenes fail and are accepted as without the search; the light
+    // chosen by the pose may move one to a neighbouring light, which moves
+    // its estimate by a fraction of a degree.
     let (on, off) = (row("clean", 0.0, true), row("clean", 0.0, false));
-    for k in ["failure_rate", "accepted_rate", "mean_phi_err_deg"] {
+    for k in ["failure_rate", "accepted_rate"] {
         assert_eq!(f(on, k), f(off, k), "{k}");
+    }
+    for k in ["mean_phi_err_deg", "mean_theta_err_deg"] {
+        assert!((f(on, k) - f(off, k)).abs() < 0.5, "{k}: {on} {off}");
     }
 }
 
@@ -211,12 +216,14 @@ fn render_takes_the_light_sensor_motion_jpeg_and_occluder_and_names_bad_values()
 
 /// Two generated objects, their imaging-aware databases trained on first
 /// use: every pooled row holds both objects' images, its rates are the
-/// objects' counts summed, its worst is the worse object's; bad lists
+/// objects' counts summed, its worst is the worse object's; every image is
+/// in the CSV, under poses of its object's and background's own; bad lists
 /// are named.
 #[test]
 fn a_population_pools_every_objects_rows_and_names_bad_lists() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("population.json");
+    let csv = dir.path().join("population.csv");
     ok(&acch(
         &[
             "eval",
@@ -233,10 +240,45 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
             "exposure",
             "--json",
             json.to_str().unwrap(),
+            "--errors",
+            csv.to_str().unwrap(),
         ],
         dir.path(),
     ));
     let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let images: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    // Two objects, clean and six exposures, 2 poses on each of 3 backgrounds.
+    assert_eq!(images.len(), 2 * 7 * 6, "{text}");
+    for o in report["per_object"].as_array().unwrap() {
+        for row in o["rows"].as_array().unwrap() {
+            let of_row: Vec<&Vec<&str>> = images
+                .iter()
+                .filter(|l| {
+                    l[col("object")] == o["object"].as_str().unwrap()
+                        && l[col("family")] == row["family"].as_str().unwrap()
+                        && l[col("level")].parse::<f64>().unwrap() == row["level"].as_f64().unwrap()
+                })
+                .collect();
+            assert_eq!(of_row.len(), 6, "{row}");
+            for (column, rate) in [("failure", "failure_rate"), ("accepted", "accepted_rate")] {
+                let count = of_row.iter().filter(|l| l[col(column)] == "1").count();
+                assert_eq!(
+                    count as f64 / 6.0,
+                    row[rate].as_f64().unwrap(),
+                    "{column} {row}"
+                );
+            }
+        }
+    }
+    let poses: std::collections::BTreeSet<(&str, &str)> = images
+        .iter()
+        .map(|l| (l[col("theta_deg")], l[col("phi_deg")]))
+        .collect();
+    assert_eq!(poses.len(), 2 * 3 * 2, "{poses:?}");
     assert_eq!(
         report["objects"],
         serde_json::json!(["generated-11", "generated-12"])
@@ -309,6 +351,21 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
     );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--protocol robust"));
+    // A protocol that writes no CSV says so rather than ignoring --errors.
+    let out = acch(
+        &[
+            "eval",
+            "--protocol",
+            "table2",
+            "--object",
+            "fruitbox",
+            "--errors",
+            "x.csv",
+        ],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--errors"));
 }
 
 /// An over exposed frame: the single-image light search keeping the light

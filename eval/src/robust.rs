@@ -135,6 +135,24 @@ pub struct RobustRow {
     pub mean_phi_err_deg: f64,
     /// Mean |Δθ| over the estimates, degrees.
     pub mean_theta_err_deg: f64,
+    /// Every image's outcome, in the order of the scenes (background by
+    /// background), for `--errors`; not in the JSON, and empty in a pooled
+    /// row (its objects' reports hold them).
+    #[serde(skip)]
+    pub images: Vec<ImageOutcome>,
+}
+
+/// What became of one image.
+#[derive(Clone, Copy, Debug)]
+pub struct ImageOutcome {
+    /// True (θ, φ), degrees.
+    pub truth: (f32, f32),
+    /// The estimate (θ, φ), degrees; None: not found.
+    pub estimate: Option<(f32, f32)>,
+    /// Wrong by the paper's rule, or not found.
+    pub failed: bool,
+    /// Accepted by the confidence network.
+    pub accepted: bool,
 }
 
 /// The robust protocol's report.
@@ -218,7 +236,16 @@ pub fn robust(
         )));
     }
     let start = Instant::now();
-    let views = ViewSpec::Random { n: o.n }.views(DEFAULT_DISTANCE, o.seed);
+    // Poses (and scenes, below) of their own for every object and
+    // background: with one draw for all, a population of 53 objects at
+    // --n 2 was measured on two poses, and the three backgrounds gave one
+    // estimate thrice.
+    let views: Vec<Vec<acch_capture::ViewPose>> = (0..BACKGROUNDS.len())
+        .map(|b| {
+            let seed = protocol::scene_seed(o.seed, b, name_salt(object.name()), 0x706f_7365);
+            ViewSpec::Random { n: o.n }.views(DEFAULT_DISTANCE, seed)
+        })
+        .collect();
     let mut conditions: Vec<Option<(&str, f64)>> = vec![None];
     for f in FAMILIES
         .iter()
@@ -243,9 +270,9 @@ pub fn robust(
             let background: Background = name.parse()?;
             let base =
                 SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
-            let seed = protocol::scene_seed(o.seed, b, 0, 0x726f_6275);
+            let seed = protocol::scene_seed(o.seed, b, name_salt(object.name()), 0x726f_6275);
             let renderer = Renderer::new(perturbed(base, *condition), seed);
-            let set: Vec<Rendered> = views
+            let set: Vec<Rendered> = views[b]
                 .par_iter()
                 .enumerate()
                 .map(|(i, v)| -> Result<Rendered, EvalError> {
@@ -283,14 +310,6 @@ pub fn robust(
     })
 }
 
-/// What became of one scene's estimate.
-struct Estimated {
-    failed: bool,
-    accepted: bool,
-    phi_err_deg: f64,
-    theta_err_deg: f64,
-}
-
 /// The chain over `scenes`, in parallel (each image is searched afresh,
 /// so the order does not matter); the row's family is left to the caller.
 fn measure(
@@ -300,7 +319,7 @@ fn measure(
     distance_m: f64,
     light_search: usize,
 ) -> Result<RobustRow, EvalError> {
-    let outcomes: Vec<Option<Estimated>> = scenes
+    let images: Vec<ImageOutcome> = scenes
         .par_iter()
         .enumerate()
         .map_init(
@@ -315,23 +334,30 @@ fn measure(
                 );
                 let t = &scene.truth;
                 let truth = (t.theta_deg as f32, t.phi_deg as f32);
-                Ok(out.pose().done().map(|e| Estimated {
-                    failed: fails((e.theta_deg, e.phi_deg), truth),
-                    accepted: out.rating().verdict().is_some_and(|v| v.accepted),
-                    phi_err_deg: phi_error(e.phi_deg, truth.1) as f64,
-                    theta_err_deg: (e.theta_deg - truth.0).abs() as f64,
-                }))
+                let estimate = out.pose().done().map(|e| (e.theta_deg, e.phi_deg));
+                Ok(ImageOutcome {
+                    truth,
+                    estimate,
+                    failed: estimate.is_none_or(|e| fails(e, truth)),
+                    accepted: estimate.is_some()
+                        && out.rating().verdict().is_some_and(|v| v.accepted),
+                })
             },
         )
         .collect::<Result<_, _>>()?;
     let n = scenes.len();
-    let estimates: Vec<&Estimated> = outcomes.iter().flatten().collect();
+    let estimates: Vec<((f32, f32), (f32, f32))> = images
+        .iter()
+        .filter_map(|o| o.estimate.map(|e| (e, o.truth)))
+        .collect();
     let found = estimates.len();
-    let failed = n - found + estimates.iter().filter(|e| e.failed).count();
-    let accepted: Vec<_> = estimates.iter().filter(|e| e.accepted).collect();
+    let failed = images.iter().filter(|o| o.failed).count();
+    let accepted: Vec<&ImageOutcome> = images.iter().filter(|o| o.accepted).collect();
     let share = |k: usize, of: usize| k as f64 / of.max(1) as f64;
-    let mean = |f: fn(&Estimated) -> f64| {
-        estimates.iter().map(|e| f(e)).sum::<f64>() / found.max(1) as f64
+    // 0 with no estimate (an empty float sum is -0, printed "-0.00°").
+    let mean = |f: fn((f32, f32), (f32, f32)) -> f32| {
+        let sum: f64 = estimates.iter().map(|&(e, t)| f(e, t) as f64).sum();
+        if found == 0 { 0.0 } else { sum / found as f64 }
     };
     Ok(RobustRow {
         family: String::new(),
@@ -342,8 +368,9 @@ fn measure(
         failure_rate: share(failed, n),
         accepted_rate: share(accepted.len(), n),
         acc_failure_rate: share(accepted.iter().filter(|e| e.failed).count(), accepted.len()),
-        mean_phi_err_deg: mean(|e| e.phi_err_deg),
-        mean_theta_err_deg: mean(|e| e.theta_err_deg),
+        mean_phi_err_deg: mean(|e, t| phi_error(e.1, t.1)),
+        mean_theta_err_deg: mean(|e, t| (e.0 - t.0).abs()),
+        images,
     })
 }
 
@@ -420,6 +447,7 @@ impl PopulationRow {
                 acc_failure_rate: share(acc_failed, accepted),
                 mean_phi_err_deg: mean(&|r| r.mean_phi_err_deg),
                 mean_theta_err_deg: mean(&|r| r.mean_theta_err_deg),
+                images: Vec::new(),
             },
             objects: rows.len(),
             worst_failure_rate: worst(&|r| r.failure_rate),
@@ -474,6 +502,11 @@ impl PopulationReport {
     /// Writes the report as JSON.
     pub fn write_json(&self, path: &Path) -> Result<(), EvalError> {
         write_json(path, self)
+    }
+
+    /// Writes every object's images' truth, estimate and outcome as CSV.
+    pub fn write_errors(&self, path: &Path) -> Result<(), EvalError> {
+        write_errors(path, &self.per_object)
     }
 
     /// Plots the pooled failure rate and the failures among the accepted
@@ -579,6 +612,40 @@ impl RobustReport {
         write_json(path, self)
     }
 
+    /// Writes every image's truth, estimate and outcome as CSV.
+    pub fn write_errors(&self, path: &Path) -> Result<(), EvalError> {
+        write_errors(path, std::slice::from_ref(self))
+    }
+
+    /// Appends this report's images to `csv`, one line each.
+    fn errors_csv(&self, csv: &mut String) {
+        use std::fmt::Write as _;
+        let opt = |v: Option<f32>| v.map_or(String::new(), |v| format!("{v:.3}"));
+        for r in &self.rows {
+            for (i, o) in r.images.iter().enumerate() {
+                let e = o.estimate;
+                let _ = writeln!(
+                    csv,
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{}",
+                    self.object,
+                    r.family,
+                    r.level,
+                    r.light_search as u8,
+                    self.backgrounds[(i / self.n.max(1)).min(self.backgrounds.len() - 1)],
+                    i % self.n.max(1),
+                    o.truth.0,
+                    o.truth.1,
+                    opt(e.map(|e| e.0)),
+                    opt(e.map(|e| e.1)),
+                    opt(e.map(|e| (e.0 - o.truth.0).abs())),
+                    opt(e.map(|e| phi_error(e.1, o.truth.1))),
+                    o.failed as u8,
+                    o.accepted as u8,
+                );
+            }
+        }
+    }
+
     /// Plots the failure rate against the level, one panel per family,
     /// with and without the light search.
     pub fn write_plot(&self, path: &Path) -> Result<(), EvalError> {
@@ -660,6 +727,28 @@ impl RobustReport {
             self.total_seconds
         );
     }
+}
+
+/// A number of its own for each object name (FNV-1a: the same in every
+/// build, unlike the standard hasher).
+fn name_salt(name: &str) -> usize {
+    name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
+    }) as usize
+}
+
+/// The images of `reports` as CSV, one line each.
+fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
+    let mut csv = String::from(
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted\n",
+    );
+    for r in reports {
+        r.errors_csv(&mut csv);
+    }
+    std::fs::write(path, csv).map_err(|source| EvalError::Io {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 #[cfg(test)]

@@ -161,7 +161,9 @@ pub struct EvalArgs {
     /// table2: write the confidence reliability diagram (PNG).
     #[arg(long, value_name = "FILE.png")]
     reliability: Option<PathBuf>,
-    /// Write every test image's truth, estimate and errors (first variant) as CSV.
+    /// table1, robust, multi: write every test image's truth, estimate and
+    /// errors as CSV (table1: the first variant; robust: every family,
+    /// level and object).
     #[arg(long, value_name = "FILE.csv")]
     errors: Option<PathBuf>,
     #[command(flatten)]
@@ -202,6 +204,13 @@ pub enum SegmentArg {
 
 /// Runs `acch eval`.
 pub fn run(args: EvalArgs) -> Result<()> {
+    let writes_errors = matches!(
+        args.protocol,
+        Protocol::Table1 | Protocol::Robust | Protocol::Multi
+    );
+    if args.errors.is_some() && (!writes_errors || args.bop.is_some() || args.labels.is_some()) {
+        bail!("--errors is written by --protocol table1, robust and multi only");
+    }
     if args.bop.is_some() || args.labels.is_some() {
         return run_dataset(args);
     }
@@ -287,6 +296,9 @@ pub fn run(args: EvalArgs) -> Result<()> {
             if let Some(path) = &args.json {
                 report.write_json(path)?;
             }
+            if let Some(path) = &args.errors {
+                report.write_errors(path)?;
+            }
             if let Some(path) = &args.plot {
                 report.write_plot(path)?;
             }
@@ -345,6 +357,9 @@ fn run_population(args: &EvalArgs, spec: &str) -> Result<()> {
     report.print();
     if let Some(path) = &args.json {
         report.write_json(path)?;
+    }
+    if let Some(path) = &args.errors {
+        report.write_errors(path)?;
     }
     if let Some(path) = &args.plot {
         report.write_plot(path)?;

@@ -219,20 +219,47 @@ impl Palette {
     /// The lookup table for a camera whose light multiplies each linear
     /// channel of the colours the palette was learnt under by `gains`
     /// ([`crate::light`]): a cell stands for its colour divided by them.
+    /// A cell saturated in a channel the light raises cannot be divided
+    /// back (the ink was anywhere above the clip), so it is matched the
+    /// other way round: against each colour as the light renders it,
+    /// saturating like the camera.
     fn build_lut_under(&mut self, gains: [f32; 3]) {
         let step = 256 / LUT_SIDE;
         let reject = self.reject_distance.max(self.space.lut_radius());
         let reject2 = reject * reject;
+        let rendered: Vec<[f32; 3]> = self
+            .centre_rgb()
+            .iter()
+            .map(|c| {
+                let lit = [0, 1, 2].map(|k| crate::light::relight(c[k], gains[k]));
+                self.space.convert(lit)
+            })
+            .collect();
+        let top = LUT_SIDE - 1;
         for r in 0..LUT_SIDE {
             for g in 0..LUT_SIDE {
                 for b in 0..LUT_SIDE {
-                    // Each cell stands for the centre of its 4x4x4 RGB block.
-                    let rgb = [r, g, b].map(|c| (c * step + step / 2) as u8);
-                    let rgb = [0, 1, 2].map(|k| match gains[k] {
-                        1.0 => rgb[k],
-                        g => crate::light::relight(rgb[k], 1.0 / g),
-                    });
-                    let (i, d2) = nearest(&self.centres, &self.space.convert(rgb));
+                    let cell = [r, g, b];
+                    let saturated = (0..3).any(|k| cell[k] == top && gains[k] > 1.0);
+                    let (i, d2) = if saturated {
+                        // A saturated channel reads 255, whatever lies below.
+                        let seen = cell.map(|c| {
+                            if c == top {
+                                255
+                            } else {
+                                (c * step + step / 2) as u8
+                            }
+                        });
+                        nearest(&rendered, &self.space.convert(seen))
+                    } else {
+                        // Each cell stands for the centre of its 4x4x4 RGB block.
+                        let rgb = cell.map(|c| (c * step + step / 2) as u8);
+                        let rgb = [0, 1, 2].map(|k| match gains[k] {
+                            1.0 => rgb[k],
+                            g => crate::light::relight(rgb[k], 1.0 / g),
+                        });
+                        nearest(&self.centres, &self.space.convert(rgb))
+                    };
                     self.lut[(r * LUT_SIDE + g) * LUT_SIDE + b] =
                         if d2 <= reject2 { i as u8 } else { NOT_OBJECT };
                 }
@@ -633,6 +660,35 @@ mod tests {
         assert_eq!(p.relit([1.0; 3]).unwrap().lut, p.lut);
         assert!(p.relit([1.0, f32::NAN, 1.0]).is_err());
         assert!(p.relit([1.0, 0.0, 1.0]).is_err());
+    }
+
+    #[test]
+    fn a_relit_palette_maps_inks_the_light_saturates_to_the_ink() {
+        // Paper white, cream and a light grey under brighter light: the
+        // first two saturate, and divided back from 255 they would read as
+        // the grey (or as nothing).
+        let colours = [
+            [245u8, 245, 240],
+            [250, 225, 160],
+            [150, 150, 150],
+            [200, 30, 30],
+        ];
+        let centres = colours
+            .iter()
+            .map(|&c| ColourSpace::Lab.convert(c))
+            .collect();
+        let p = Palette::from_centres(ColourSpace::Lab, centres, 8.0).expect("palette");
+        for gains in [[2.0; 3], [1.6, 1.0, 0.55]] {
+            let relit = p.relit(gains).unwrap();
+            for (i, c) in colours.iter().enumerate() {
+                let seen = [0, 1, 2].map(|k| crate::light::relight(c[k], gains[k]));
+                assert_eq!(
+                    relit.index(seen),
+                    i as u8,
+                    "{c:?} seen as {seen:?} under {gains:?}"
+                );
+            }
+        }
     }
 
     #[test]
