@@ -4,7 +4,7 @@
 //! True masks, so quantisation and matching alone are measured; generated
 //! objects of the development seed (docs/accuracy.md, "A blurred camera").
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer};
 use acch_core::Smoothing;
 use acch_eval::protocol::{self, fails};
 use acch_eval::train::{RenderedTraining, train_rendered};
@@ -27,14 +27,11 @@ fn smoothed_views_and_frames_hold_a_blurred_camera_where_raw_pixels_fail() {
         let dbs = [train(Smoothing::Binomial), train(Smoothing::Off)];
         assert_eq!(dbs[0].palette.smoothing(), Smoothing::Binomial);
         let mut estimators = dbs.clone().map(|db| PoseEstimator::new(db).unwrap());
-        for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-            let background: Background = bg.parse().unwrap();
-            let mut config =
-                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+        for b in 0..3 {
+            let (mut config, seed, poses) =
+                protocol::diagnosis_scenes(&object, k, b, 0xb1, 6).unwrap();
             config.effects.blur_sigma = 2.0;
-            let seed = protocol::scene_seed(7_000 + k, b, 0, 0xb1);
             let renderer = Renderer::new(config, seed);
-            let poses = ViewSpec::Random { n: 6 }.views(acch_capture::DEFAULT_DISTANCE, seed);
             for (i, v) in poses.iter().enumerate() {
                 let r = renderer.render(v, acch_capture::frame_seed(seed, i));
                 let (w, h) = r.image.dimensions();

@@ -7,7 +7,7 @@
 //! seed (docs/accuracy.md, "An occluded object"). The chain's region holds
 //! both parts of an object the bar parts.
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer};
 use acch_eval::protocol::{self, fails};
 use acch_pose::train::mask_bbox;
 use acch_pose::{Matching, PoseEstimator, Refinement};
@@ -26,14 +26,11 @@ fn visible_part_matching_holds_an_occluded_view_where_the_normalised_match_fails
             Matching::Visible,
             "the database has its views' pairs"
         );
-        for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-            let background: Background = bg.parse().unwrap();
-            let mut config =
-                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+        for b in 0..3 {
+            let (mut config, seed, poses) =
+                protocol::diagnosis_scenes(&object, k, b, 0x6f63, 6).unwrap();
             config.occlusion = 0.3;
-            let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
             let renderer = Renderer::new(config, seed);
-            let poses = ViewSpec::Random { n: 6 }.views(acch_capture::DEFAULT_DISTANCE, seed);
             for (i, v) in poses.iter().enumerate() {
                 let r = renderer.render(v, acch_capture::frame_seed(seed, i));
                 let (w, h) = r.image.dimensions();
@@ -79,14 +76,11 @@ fn the_region_of_an_object_a_bar_parts_holds_both_parts() {
         let object = Arc::new(Object::builtin(&format!("generated-{k}")).unwrap());
         let (db, _) = acch_eval::train::cached_database(&object, None).unwrap();
         let mut chain = protocol::chain(&db).unwrap();
-        for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-            let background: Background = bg.parse().unwrap();
-            let mut config =
-                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+        for b in 0..3 {
+            let (mut config, seed, poses) =
+                protocol::diagnosis_scenes(&object, k, b, 0x6f63, 6).unwrap();
             config.occlusion = 0.2;
-            let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
             let renderer = Renderer::new(config, seed);
-            let poses = ViewSpec::Random { n: 6 }.views(acch_capture::DEFAULT_DISTANCE, seed);
             for (i, v) in poses.iter().enumerate() {
                 let r = renderer.render(v, acch_capture::frame_seed(seed, i));
                 let (w, h) = r.image.dimensions();

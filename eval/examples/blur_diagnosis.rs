@@ -12,7 +12,7 @@
 //! (generated objects FIRST.., default 3000, 10 objects, 6 views a
 //! background, training sigmas 0,1,2).
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer, SceneConfig, TextureSet};
 use acch_core::ViewDatabase;
 use acch_eval::protocol::{self, fails};
 use acch_eval::train::{RenderedTraining, train_views, unrated_chain};
@@ -87,17 +87,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let distance_m = db.train_distance_m as f64;
             let mut pose = Pose::new(db, &protocol::settings_at(db, distance_m, 0))?;
             for (l, &blur) in BLURS.iter().enumerate() {
-                for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-                    let background: Background = bg.parse()?;
-                    let mut config = SceneConfig::new(object.clone(), background)
-                        .with_textures(TextureSet::HeldOut);
+                for b in 0..3 {
+                    let (mut config, seed, views) =
+                        protocol::diagnosis_scenes(&object, k, b, 0xb1, n)?;
                     // The blurred database's queries also take its first sigma
                     // (a frame smoothed before quantisation, emulated).
                     let pre = if d == 1 && emulate { sigmas[0] } else { 0.0 };
                     config.effects.blur_sigma = (blur * blur + pre * pre).sqrt();
-                    let seed = protocol::scene_seed(7_000 + k, b, 0, 0xb1);
                     let renderer = Renderer::new(config, seed);
-                    let views = ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
                     let mut chain =
                         unrated_chain(db, camera.width, camera.height, distance_m, 0.0, 0)?;
                     for (i, v) in views.iter().enumerate() {

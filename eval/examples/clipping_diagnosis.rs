@@ -49,13 +49,7 @@ fn clipped_share(rgb: &[u8], mask: impl Iterator<Item = usize>) -> f64 {
 type Record = (&'static str, bool, bool, f64, f64, bool, bool, bool, bool);
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse())
-        .collect::<Result<_, _>>()?;
-    let first = args.first().copied().unwrap_or(3000);
-    let count = args.get(1).copied().unwrap_or(10);
-    let n = args.get(2).copied().unwrap_or(4) as usize;
+    let (first, count, n) = protocol::diagnosis_args(10, 4)?;
     let conditions: [(&str, Effects); 5] = [
         ("clean", Effects::default()),
         (

@@ -22,13 +22,7 @@ fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse())
-        .collect::<Result<_, _>>()?;
-    let first = args.first().copied().unwrap_or(3000);
-    let count = args.get(1).copied().unwrap_or(5);
-    let n = args.get(2).copied().unwrap_or(8) as usize;
+    let (first, count, n) = protocol::diagnosis_args(5, 8)?;
     for exposure in [1.0f32, 1.25, 1.5] {
         // (time ms, wrong) per image: recognition's light, the pose's.
         let mut by = [(Vec::new(), 0usize), (Vec::new(), 0usize)];

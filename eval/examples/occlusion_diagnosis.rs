@@ -8,7 +8,7 @@
 //! `cargo run --release -p acch-eval --example occlusion_diagnosis -- [FIRST] [OBJECTS] [N]`
 //! (generated objects FIRST.., default 3000, 10 objects, 6 views a background).
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer};
 use acch_core::NOT_OBJECT;
 use acch_eval::protocol::{self, fails};
 use acch_pipeline::Stage;
@@ -17,13 +17,7 @@ use acch_pipeline::wire::Outcome;
 use std::sync::Arc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse())
-        .collect::<Result<_, _>>()?;
-    let first = args.first().copied().unwrap_or(3000);
-    let count = args.get(1).copied().unwrap_or(10);
-    let n = args.get(2).copied().unwrap_or(6) as usize;
+    let (first, count, n) = protocol::diagnosis_args(10, 6)?;
     println!(
         "object share | bar px as object % | bar in region % | IoU | chain fail % acc % acc-fail % | true-mask fail %"
     );
@@ -36,16 +30,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (mut bar_px, mut bar_obj, mut bar_in, mut iou_sum) = (0usize, 0usize, 0usize, 0.0);
             let (mut scenes, mut chain_fail, mut acc, mut acc_fail, mut true_fail) =
                 (0usize, 0usize, 0usize, 0usize, 0usize);
-            for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-                let background: Background = bg.parse()?;
-                let base =
-                    SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
-                let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
+            for b in 0..3 {
+                let (base, seed, views) = protocol::diagnosis_scenes(&object, k, b, 0x6f63, n)?;
                 let clean = Renderer::new(base.clone(), seed);
                 let mut occluded_config = base;
                 occluded_config.occlusion = share;
                 let occluded = Renderer::new(occluded_config, seed);
-                let views = ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
                 let mut chain = protocol::chain(&db)?;
                 let mut pose = Pose::new(
                     &db,

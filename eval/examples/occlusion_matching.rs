@@ -12,7 +12,7 @@
 //!
 //! `cargo run --release -p acch-eval --example occlusion_matching -- [FIRST] [OBJECTS] [N]`
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer, TextureSet};
 use acch_core::HistogramExtractor;
 use acch_eval::protocol::{self, fails};
 use acch_eval::train::RenderedTraining;
@@ -22,13 +22,7 @@ use std::sync::Arc;
 const SCORERS: [&str; 6] = ["normalised", "visible", "model", "larger", "product", "sum"];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse())
-        .collect::<Result<_, _>>()?;
-    let first = args.first().copied().unwrap_or(3000);
-    let count = args.get(1).copied().unwrap_or(10);
-    let n = args.get(2).copied().unwrap_or(6) as usize;
+    let (first, count, n) = protocol::diagnosis_args(10, 6)?;
     let shares = [0.0f32, 0.1, 0.2, 0.3];
     // failures[share][mask][scorer], scenes[share]
     let mut failures = [[[0usize; 6]; 2]; 4];
@@ -75,14 +69,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )?
         .with_refinement(acch_pose::Refinement::WinnerTakesAll);
         for (s, &share) in shares.iter().enumerate() {
-            for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-                let background: Background = bg.parse()?;
-                let mut config =
-                    SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+            for b in 0..3 {
+                let (mut config, seed, poses) =
+                    protocol::diagnosis_scenes(&object, k, b, 0x6f63, n)?;
                 config.occlusion = share;
-                let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
                 let occluded = Renderer::new(config, seed);
-                let poses = ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
                 let mut chain = protocol::chain(&db)?;
                 for (i, v) in poses.iter().enumerate() {
                     let r = occluded.render(v, acch_capture::frame_seed(seed, i));

@@ -12,7 +12,7 @@
 //! `cargo run --release -p acch-eval --example occlusion_region -- [FIRST] [OBJECTS] [N]`
 //! (generated objects FIRST.., default 3000, 10 objects, 6 views a background).
 
-use acch_capture::{Background, Object, Renderer, SceneConfig, TextureSet, ViewSpec};
+use acch_capture::{Object, Renderer};
 use acch_eval::protocol::{self, fails};
 use acch_pipeline::Stage;
 use acch_pipeline::stages::{Pose, Segmented};
@@ -28,13 +28,7 @@ const MASKS: [&str; 5] = [
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args()
-        .skip(1)
-        .map(|a| a.parse())
-        .collect::<Result<_, _>>()?;
-    let first = args.first().copied().unwrap_or(3000);
-    let count = args.get(1).copied().unwrap_or(10);
-    let n = args.get(2).copied().unwrap_or(6) as usize;
+    let (first, count, n) = protocol::diagnosis_args(10, 6)?;
     let shares = [0.0f32, 0.1, 0.2, 0.3];
     let mut fail = [[0usize; 5]; 4];
     let mut scenes = [0usize; 4];
@@ -47,16 +41,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let object = Arc::new(Object::builtin(&format!("generated-{k}"))?);
         let (db, _) = acch_eval::train::cached_database(&object, None)?;
         for (s, &share) in shares.iter().enumerate() {
-            for (b, bg) in ["A", "B", "C"].iter().enumerate() {
-                let background: Background = bg.parse()?;
-                let base =
-                    SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
-                let seed = protocol::scene_seed(7_000 + k, b, 0, 0x6f63);
+            for b in 0..3 {
+                let (base, seed, views) = protocol::diagnosis_scenes(&object, k, b, 0x6f63, n)?;
                 let clean = Renderer::new(base.clone(), seed);
                 let mut occluded_config = base;
                 occluded_config.occlusion = share;
                 let occluded = Renderer::new(occluded_config, seed);
-                let views = ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
                 let mut chain = protocol::chain(&db)?;
                 let mut pose = Pose::new(
                     &db,

@@ -142,6 +142,43 @@ pub fn scene_seed(seed: u64, b: usize, i: usize, salt: u64) -> u64 {
     acch_capture::frame_seed(seed ^ (salt << 32) ^ ((b as u64 + 1) << 48), i)
 }
 
+/// The `[FIRST] [OBJECTS] [N]` arguments of a diagnosis example: generated
+/// objects FIRST.., OBJECTS of them, N poses a background (defaults 3000,
+/// `objects`, `n`).
+pub fn diagnosis_args(objects: u64, n: usize) -> Result<(u64, u64, usize), EvalError> {
+    let args: Vec<u64> = std::env::args()
+        .skip(1)
+        .take(3)
+        .map(|a| {
+            a.parse()
+                .map_err(|_| EvalError::Input(format!("'{a}': expected [FIRST] [OBJECTS] [N]")))
+        })
+        .collect::<Result<_, _>>()?;
+    Ok((
+        args.first().copied().unwrap_or(3000),
+        args.get(1).copied().unwrap_or(objects),
+        args.get(2).map_or(n, |&v| v as usize),
+    ))
+}
+
+/// The scenes the diagnosis examples and their tests share for generated
+/// object `k` on background `b` (0, 1, 2: A, B, C): the configuration
+/// (held-out textures, to which the caller adds its perturbation), the
+/// scene seed (one `salt` per diagnosis) and `n` random poses.
+pub fn diagnosis_scenes(
+    object: &Arc<Object>,
+    k: u64,
+    b: usize,
+    salt: u64,
+    n: usize,
+) -> Result<(SceneConfig, u64, Vec<ViewPose>), EvalError> {
+    let background: Background = ["A", "B", "C"][b].parse()?;
+    let config = SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
+    let seed = scene_seed(7_000 + k, b, 0, salt);
+    let views = acch_capture::ViewSpec::Random { n }.views(acch_capture::DEFAULT_DISTANCE, seed);
+    Ok((config, seed, views))
+}
+
 /// A progress bar on stderr with a message and a count.
 pub fn progress(len: u64, message: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);
