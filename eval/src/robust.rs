@@ -153,6 +153,10 @@ pub struct ImageOutcome {
     pub failed: bool,
     /// Accepted by the confidence network.
     pub accepted: bool,
+    /// The best view's match value; None: not found.
+    pub match_value: Option<f32>,
+    /// The confidence network's output; None: not rated.
+    pub confidence: Option<f32>,
 }
 
 /// The robust protocol's report.
@@ -334,13 +338,16 @@ fn measure(
                 );
                 let t = &scene.truth;
                 let truth = (t.theta_deg as f32, t.phi_deg as f32);
-                let estimate = out.pose().done().map(|e| (e.theta_deg, e.phi_deg));
+                let posed = out.pose().done();
+                let estimate = posed.map(|e| (e.theta_deg, e.phi_deg));
+                let verdict = out.rating().verdict();
                 Ok(ImageOutcome {
                     truth,
                     estimate,
                     failed: estimate.is_none_or(|e| fails(e, truth)),
-                    accepted: estimate.is_some()
-                        && out.rating().verdict().is_some_and(|v| v.accepted),
+                    accepted: estimate.is_some() && verdict.is_some_and(|v| v.accepted),
+                    match_value: posed.map(|e| e.best_value),
+                    confidence: verdict.map(|v| v.confidence),
                 })
             },
         )
@@ -626,7 +633,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -641,6 +648,8 @@ impl RobustReport {
                     opt(e.map(|e| phi_error(e.1, o.truth.1))),
                     o.failed as u8,
                     o.accepted as u8,
+                    opt(o.match_value),
+                    opt(o.confidence),
                 );
             }
         }
@@ -740,7 +749,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

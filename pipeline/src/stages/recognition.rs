@@ -182,6 +182,13 @@ impl Recognition {
         self.by_pose = None;
     }
 
+    /// The stage counting a detection under a light other than the
+    /// training light from `fraction` of the training score instead of
+    /// [`acch_recognition::RELIT_SCORE_FRACTION`] (for measuring).
+    pub fn count_relit_from(&mut self, fraction: f32) {
+        self.lights.set_relit_score_fraction(fraction);
+    }
+
     /// The detector (heat map and best score of the last frame).
     pub fn detector(&self) -> &Detector {
         &self.detector

@@ -53,7 +53,10 @@ mod model;
 
 pub use counts::{ColourCounts, CountLayout, MAX_FEATURES, RegionCounts};
 pub use detector::{CellRect, Detection, Detector, HeatMap};
-pub use light::{CANDIDATES, COLOUR_TEMPERATURES_K, EXPOSURES, LightSearch, WEAK_SCORE_FRACTION};
+pub use light::{
+    CANDIDATES, COLOUR_TEMPERATURES_K, EXPOSURES, LightSearch, RELIT_SCORE_FRACTION,
+    WEAK_SCORE_FRACTION,
+};
 pub use model::{
     ColourPeaks, MODEL_VERSION, RecognitionError, RecognitionModel, RecognitionParams, SECTION,
 };

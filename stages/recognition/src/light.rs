@@ -54,8 +54,12 @@ pub const CANDIDATES: usize = EXPOSURES.len() + COLOUR_TEMPERATURES_K.len() - 2;
 /// background can take on the object's colours: on table 2's scenes with
 /// the object out of view the best window under any light reached 0.45 of
 /// the training score (can, clutter), against 0.04 under the training
-/// light alone.
-pub const RELIT_SCORE_FRACTION: f32 = 0.7;
+/// light alone. It was 0.7: an object seen from above (a bottle's cap)
+/// scores little more than the threshold even under the right light, and
+/// was lost under any other light (docs/accuracy.md, "Seen from above
+/// under another light"); at 0.6 table 2 with the search still finds
+/// nothing with the object out of view.
+pub const RELIT_SCORE_FRACTION: f32 = 0.6;
 
 /// Index of the training light in each grid.
 const TRAINING: (usize, usize) = (8, 3);
@@ -78,6 +82,9 @@ pub struct LightSearch {
     /// A frame's indices under a light being rated
     /// ([`LightSearch::choose_light`]).
     scratch: Vec<u8>,
+    /// Share of the training score a detection under another light must
+    /// reach ([`RELIT_SCORE_FRACTION`]).
+    relit_fraction: f32,
 }
 
 impl LightSearch {
@@ -96,7 +103,15 @@ impl LightSearch {
             per_frame,
             offset: 0,
             scratch: Vec::new(),
+            relit_fraction: RELIT_SCORE_FRACTION,
         }
+    }
+
+    /// Counts a detection under another light from `fraction` of the
+    /// training score instead of [`RELIT_SCORE_FRACTION`] (the evaluations
+    /// compare the two).
+    pub fn set_relit_score_fraction(&mut self, fraction: f32) {
+        self.relit_fraction = fraction;
     }
 
     /// The linear gains of the light in use ([1, 1, 1] is the training
@@ -145,6 +160,7 @@ impl LightSearch {
         scale: Option<f32>,
     ) -> Option<Detection> {
         let train_score = detector.model().train_score;
+        let relit_fraction = self.relit_fraction;
         let mut training_indices_ready = quantised;
         let mut run =
             |at: (usize, usize), palette: &Palette, detector: &mut Detector, indices: &mut [u8]| {
@@ -156,7 +172,7 @@ impl LightSearch {
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
                     .detect(view, scale)
-                    .filter(|d| counts(at, d, train_score));
+                    .filter(|d| counts(at, d, train_score, relit_fraction));
                 (found, detector.best_score())
             };
         if self.per_frame >= CANDIDATES {
@@ -251,7 +267,7 @@ impl LightSearch {
             let view = IndexView::new(width, height, indices).expect("sized by the caller");
             if let Some(d) = detector
                 .detect(view, scale)
-                .filter(|d| counts(at, d, train_score))
+                .filter(|d| counts(at, d, train_score, self.relit_fraction))
             {
                 self.current = at;
                 return Some(d);
@@ -264,10 +280,10 @@ impl LightSearch {
 }
 
 /// Whether a detection under light `at` counts: under the training light
-/// at the model's threshold, under any other at [`RELIT_SCORE_FRACTION`]
-/// of the training score.
-fn counts(at: (usize, usize), d: &Detection, train_score: f32) -> bool {
-    at == TRAINING || d.score >= RELIT_SCORE_FRACTION * train_score
+/// at the model's threshold, under any other at `relit_fraction` of the
+/// training score ([`RELIT_SCORE_FRACTION`] unless measuring).
+fn counts(at: (usize, usize), d: &Detection, train_score: f32, relit_fraction: f32) -> bool {
+    at == TRAINING || d.score >= relit_fraction * train_score
 }
 
 /// Relit palettes kept per process, at most this many (about 256 KB
