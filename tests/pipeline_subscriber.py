@@ -61,19 +61,25 @@ def main():
     ]
     accepted = sum(1 for r in results.values() if r["accepted"])
     # Each verdict against its own threshold, from the message alone: an
-    # accepted result is rated at or above the threshold and seeded (on the
-    # seed topic too); a rejected one is rated below it and has no seed,
-    # there or on the seed topic.
+    # accepted result is rated at or above the threshold, with no rival
+    # above its bar, and seeded (on the seed topic too); a rejected one is
+    # rated below it or has such a rival, and has no seed, there or on the
+    # seed topic.
     bad_verdicts = []
     rejected = 0
     for seq, r in results.items():
         conf, thr = r.get("confidence"), r.get("threshold")
         if r["accepted"]:
             ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
-                  and conf >= thr and r.get("seed") is not None and seq in seeds)
+                  and conf >= thr and r.get("rival") is not None
+                  and r.get("max_rival") is not None and r["rival"] <= r["max_rival"]
+                  and r.get("seed") is not None and seq in seeds)
         elif r.get("rating") == "rejected":
             rejected += 1
-            ok = (conf is not None and thr is not None and conf < thr
+            rival, max_rival = r.get("rival"), r.get("max_rival")
+            ok = (conf is not None and thr is not None
+                  and (conf < thr or (rival is not None and max_rival is not None
+                                      and rival > max_rival))
                   and r.get("seed") is None and seq not in seeds)
         else:
             ok = r.get("seed") is None and seq not in seeds

@@ -157,6 +157,9 @@ pub struct ImageOutcome {
     pub match_value: Option<f32>,
     /// The confidence network's output; None: not rated.
     pub confidence: Option<f32>,
+    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// ([`acch_confidence::rival_ratio`]); None: not found.
+    pub rival: Option<f32>,
 }
 
 /// The robust protocol's report.
@@ -341,6 +344,15 @@ fn measure(
                 let posed = out.pose().done();
                 let estimate = posed.map(|e| (e.theta_deg, e.phi_deg));
                 let verdict = out.rating().verdict();
+                let rival = chain.last_response().and_then(|r| {
+                    let response: Vec<f32> = r.values().collect();
+                    acch_confidence::rival_ratio(
+                        &response,
+                        db.views(),
+                        acch_confidence::DEFAULT_MIN_PHI_SEPARATION_DEG,
+                    )
+                    .ok()
+                });
                 Ok(ImageOutcome {
                     truth,
                     estimate,
@@ -348,6 +360,7 @@ fn measure(
                     accepted: estimate.is_some() && verdict.is_some_and(|v| v.accepted),
                     match_value: posed.map(|e| e.best_value),
                     confidence: verdict.map(|v| v.confidence),
+                    rival,
                 })
             },
         )
@@ -633,7 +646,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -650,6 +663,7 @@ impl RobustReport {
                     o.accepted as u8,
                     opt(o.match_value),
                     opt(o.confidence),
+                    opt(o.rival),
                 );
             }
         }
@@ -749,7 +763,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

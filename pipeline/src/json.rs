@@ -126,6 +126,12 @@ pub struct ResultJson<'a> {
     pub confidence: Option<f32>,
     /// The threshold it was held against, when rated.
     pub threshold: Option<f32>,
+    /// The best match beyond 20° of the estimate's azimuth over the best,
+    /// when rated: above `max_rival` the estimate is rejected as
+    /// ambiguous, whatever its confidence.
+    pub rival: Option<f32>,
+    /// The largest rival accepted, when rated.
+    pub max_rival: Option<f32>,
     /// Time stamps.
     pub stamp: Stamp,
     /// Whether recognition found the object.
@@ -223,6 +229,8 @@ impl<'a> ResultJson<'a> {
             rating: m.rating().state(),
             confidence: verdict.map(|v| v.confidence),
             threshold: verdict.map(|v| v.threshold),
+            rival: verdict.map(|v| v.rival),
+            max_rival: verdict.map(|v| v.max_rival),
             stamp,
             found: m.detection().done().is_some(),
             roi: m.region().done().map(|r| r.to_array()),

@@ -252,7 +252,7 @@ mod tests {
                 phi_deg: p,
                 ..Default::default()
             });
-            let v = Verdict::new(confidence, 0.8);
+            let v = Verdict::new(confidence, 0.8, 0.0, 1.0);
             m.rated.rating = Rating::Rated(v);
             if v.accepted {
                 m.seeding.seed = Outcome::Done(Default::default());

@@ -1,7 +1,8 @@
-//! Accepted means rated at or above the threshold, and nothing else: a
-//! database without a confidence network is refused unless the run is
-//! explicitly unrated (and then nothing is accepted), and a response the
-//! network cannot rate is a counted fault, never an accepted estimate.
+//! Accepted means rated at or above the threshold with no far view
+//! matching nearly as well, and nothing else: a database without a
+//! confidence network is refused unless the run is explicitly unrated (and
+//! then nothing is accepted), and a response the network cannot rate is a
+//! counted fault, never an accepted estimate.
 
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
@@ -131,7 +132,10 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
         &mut counters,
     );
     let verdict = rated.rating.verdict().expect("rated");
-    assert_eq!(verdict.accepted, verdict.confidence >= verdict.threshold);
+    assert_eq!(
+        verdict.accepted,
+        verdict.confidence >= verdict.threshold && verdict.rival <= verdict.max_rival
+    );
     assert_eq!(counters.total_faults(), 0);
     // One value short: a fault, counted, not accepted, not seeded.
     let short = &response[..4 * (views - 1)];
@@ -146,4 +150,53 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
     let rated = step(&mut confidence, &posed(), &nan, &mut [], 0, &mut counters);
     assert_eq!(rated.rating, Rating::Failed(Fault::Response));
     assert_eq!(counters.faults_of(Fault::Response), 2);
+}
+
+#[test]
+fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
+    let mut db = database(true);
+    let mut model = acch_confidence::Model::load(&db).unwrap();
+    model.set_threshold(0.0).unwrap();
+    model.store(&mut db);
+    let views = db.views().len();
+    let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
+    let mut counters = StageCounters::new(StageId::Confidence);
+    let bytes = |r: &[f32]| -> Vec<u8> { r.iter().flat_map(|v| v.to_ne_bytes()).collect() };
+    let mut rate = |r: &[f32]| {
+        step(
+            &mut confidence,
+            &posed(),
+            &bytes(r),
+            &mut [],
+            0,
+            &mut counters,
+        )
+        .rating
+        .verdict()
+        .expect("rated")
+    };
+    // One peak over a floor: every rating clears a threshold of 0.
+    let mut response = vec![0.1f32; views];
+    response[0] = 0.9;
+    let clear = rate(&response);
+    assert!(clear.accepted && !clear.ambiguous(), "{clear:?}");
+    // A view half a turn away in φ matching as well: rejected.
+    let opposite = db
+        .views()
+        .iter()
+        .position(|v| {
+            v.theta_deg == db.views()[0].theta_deg
+                && acch_pose::phi_error(v.phi_deg, db.views()[0].phi_deg) == 180.0
+        })
+        .expect("the grid holds the opposite view");
+    response[opposite] = 0.9;
+    let tie = rate(&response);
+    assert!(tie.confidence >= tie.threshold, "{tie:?}");
+    assert!(
+        !tie.accepted && tie.ambiguous() && tie.rival == 1.0,
+        "{tie:?}"
+    );
+    // Just under the bar: accepted again.
+    response[opposite] = 0.9 * acch_confidence::MAX_RIVAL_RATIO * 0.999;
+    assert!(rate(&response).accepted);
 }

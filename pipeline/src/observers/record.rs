@@ -188,12 +188,21 @@ impl Observe for Recording {
         let rect = |r: [u32; 4]| r.map(f64::from);
         let caption = match (m.pose().done(), m.rating().verdict()) {
             (Some(p), Some(v)) => format!(
-                "θ {:.1}° φ {:.1}°  confidence {:.3} {} {:.2}: {}",
+                "θ {:.1}° φ {:.1}°  confidence {:.3} {} {:.2}{}: {}",
                 p.theta_deg,
                 p.phi_deg,
                 v.confidence,
-                if v.accepted { "≥" } else { "<" },
+                if v.confidence >= v.threshold {
+                    "≥"
+                } else {
+                    "<"
+                },
                 v.threshold,
+                if v.ambiguous() {
+                    format!(", rival {:.3} > {:.3}", v.rival, v.max_rival)
+                } else {
+                    String::new()
+                },
                 m.rating().state()
             ),
             (Some(p), None) => format!(

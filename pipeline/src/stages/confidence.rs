@@ -1,5 +1,7 @@
 //! Confidence: the database's network rates the pose stage's response; an
-//! estimate is accepted only when it is rated at or above the threshold.
+//! estimate is accepted only when it is rated at or above the threshold
+//! and no view far from it in azimuth matches nearly as well (its rival at
+//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best).
 //!
 //! A database without a network is refused unless the run is explicitly
 //! unrated ([`StageSettings::unrated`]): then every estimate is marked
@@ -14,26 +16,44 @@ use acch_core::{View, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_pose::Slice;
 
-/// The network's verdict on one estimate.
+/// The verdict on one estimate.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct Verdict {
-    /// Probability that the estimate is within the failure thresholds.
+    /// The network's probability that the estimate is within the failure
+    /// thresholds.
     pub confidence: f32,
     /// The threshold it was held against.
     pub threshold: f32,
-    /// `confidence >= threshold` (a NaN confidence is rejected).
+    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// ([`acch_confidence::rival_ratio`]).
+    pub rival: f32,
+    /// The largest rival accepted.
+    pub max_rival: f32,
+    /// `confidence >= threshold` and `rival <= max_rival` (NaN in either
+    /// is rejected).
     pub accepted: bool,
 }
 
 impl Verdict {
-    /// The verdict on `confidence` against `threshold`.
-    pub fn new(confidence: f32, threshold: f32) -> Self {
+    /// The verdict on `confidence` against `threshold` and on `rival`
+    /// against `max_rival`.
+    pub fn new(confidence: f32, threshold: f32, rival: f32, max_rival: f32) -> Self {
         Verdict {
             confidence,
             threshold,
-            accepted: confidence >= threshold,
+            rival,
+            max_rival,
+            accepted: confidence >= threshold && rival <= max_rival,
         }
+    }
+
+    /// Whether a far view matched too nearly as well (rejected for it,
+    /// whatever the confidence).
+    pub fn ambiguous(&self) -> bool {
+        use std::cmp::Ordering::{Equal, Less};
+        // A NaN rival is ambiguous too.
+        !matches!(self.rival.partial_cmp(&self.max_rival), Some(Less | Equal))
     }
 }
 
@@ -114,6 +134,7 @@ pub struct Confidence {
     slices: Vec<Slice>,
     views: Vec<View>,
     response: Vec<f32>,
+    max_rival: f32,
 }
 
 impl Confidence {
@@ -145,7 +166,15 @@ impl Confidence {
             slices: acch_pose::slices(db),
             response: Vec::with_capacity(db.views().len()),
             views: db.views().to_vec(),
+            max_rival: acch_confidence::MAX_RIVAL_RATIO,
         }
+    }
+
+    /// Accepts estimates whose rival is at most `max_rival` of the best
+    /// match instead of [`acch_confidence::MAX_RIVAL_RATIO`] (1 accepts
+    /// every rival: the network alone decides); to measure another bar.
+    pub fn accept_rivals_to(&mut self, max_rival: f32) {
+        self.max_rival = max_rival;
     }
 
     /// The network, unless unrated.
@@ -180,7 +209,18 @@ impl Stage for Confidence {
         let confidence = model
             .try_rate(&self.response, &self.slices, &self.views)
             .map_err(|_| Fault::Response)?;
-        Ok(Rating::Rated(Verdict::new(confidence, model.threshold())))
+        let rival = acch_confidence::rival_ratio(
+            &self.response,
+            &self.views,
+            model.feature_params().min_phi_separation_deg,
+        )
+        .map_err(|_| Fault::Response)?;
+        Ok(Rating::Rated(Verdict::new(
+            confidence,
+            model.threshold(),
+            rival,
+            self.max_rival,
+        )))
     }
 
     fn output(input: &Posed, rating: Rating) -> Rated {
@@ -196,10 +236,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn only_a_rating_at_or_above_the_threshold_is_accepted() {
-        assert!(Rating::Rated(Verdict::new(0.8, 0.8)).accepted());
-        assert!(!Rating::Rated(Verdict::new(0.79, 0.8)).accepted());
-        assert!(!Rating::Rated(Verdict::new(f32::NAN, 0.8)).accepted());
+    fn only_a_rating_at_or_above_the_threshold_without_a_close_rival_is_accepted() {
+        let verdict = |confidence, rival| Verdict::new(confidence, 0.8, rival, 0.99);
+        assert!(Rating::Rated(verdict(0.8, 0.99)).accepted());
+        assert!(!Rating::Rated(verdict(0.79, 0.5)).accepted());
+        assert!(!Rating::Rated(verdict(f32::NAN, 0.5)).accepted());
+        assert!(!Rating::Rated(verdict(1.0, 0.995)).accepted());
+        assert!(!Rating::Rated(verdict(1.0, f32::NAN)).accepted());
+        assert!(verdict(1.0, 0.995).ambiguous() && !verdict(0.5, 0.99).ambiguous());
         for r in [
             Rating::Skipped,
             Rating::Unrated,
@@ -207,7 +251,10 @@ mod tests {
         ] {
             assert!(!r.accepted(), "{r:?}");
         }
-        assert_eq!(Rating::Rated(Verdict::new(0.1, 0.8)).state(), "rejected");
+        assert_eq!(
+            Rating::Rated(Verdict::new(0.1, 0.8, 0.5, 0.99)).state(),
+            "rejected"
+        );
         assert_eq!(Rating::Unrated.state(), "unrated");
     }
 }

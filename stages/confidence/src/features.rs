@@ -243,6 +243,46 @@ pub(crate) fn scan_response(response: &[f32]) -> Result<(usize, f32), Confidence
     Ok(best)
 }
 
+/// The best match among the views whose azimuth is more than
+/// `min_phi_separation_deg` from the best view's, in any θ slice, over the
+/// global maximum; in [0, 1] (0 when no view is that far, 1 for a zero
+/// response). Unlike [`Features::r_phi`] it looks across slices: seen from
+/// near above, the best view's rival in φ usually sits in a neighbouring
+/// slice, and a turn of the object about the vertical is then a turn of
+/// the image that the paper's same-slice ratio misses.
+///
+/// Errors as [`Features::compute`] does for the response and the views.
+pub fn rival_ratio(
+    response: &[f32],
+    views: &[View],
+    min_phi_separation_deg: f32,
+) -> Result<f32, ConfidenceError> {
+    FeatureParams {
+        min_phi_separation_deg,
+    }
+    .validate()?;
+    let (best, g) = scan_response(response)?;
+    if views.len() != response.len() {
+        return Err(ConfidenceError::LengthMismatch {
+            what: "views",
+            expected: response.len(),
+            found: views.len(),
+        });
+    }
+    if let Some(index) = views.iter().position(|v| !v.phi_deg.is_finite()) {
+        return Err(ConfidenceError::InvalidView { index });
+    }
+    let phi0 = views[best].phi_deg;
+    let rival = response
+        .iter()
+        .zip(views)
+        .filter(|(_, v)| phi_error(v.phi_deg, phi0) > min_phi_separation_deg)
+        .fold(None, |a: Option<f32>, (&m, _)| {
+            Some(a.map_or(m, |a| a.max(m)))
+        });
+    Ok(rival.map_or(0.0, |v| normalised(v, g)))
+}
+
 /// Checks that the slices cover `0..n` contiguously, in order, each
 /// non-empty.
 fn check_slices(slices: &[Slice], n: usize) -> Result<(), ConfidenceError> {
@@ -333,6 +373,34 @@ pub(crate) mod tests {
         assert!((f.r_phi - 0.1 / 0.9).abs() < 1e-6);
         assert!((f.r_theta - 0.1 / 0.9).abs() < 1e-6);
         assert_eq!(f.d_theta, 1.0);
+    }
+
+    #[test]
+    fn the_rival_is_the_best_far_view_in_any_slice() {
+        let (_, views) = grid(&THETAS, 36);
+        let mut r = vec![0.2; views.len()];
+        r[5 * 36 + 4] = 0.9; // θ = 90°, φ = 40°: the best.
+        r[5 * 36 + 5] = 0.88; // φ = 50°: within 20°, no rival.
+        r[4 * 36 + 3] = 0.89; // θ = 80°, φ = 30°: within 20°, no rival.
+        // Nothing far matches: the floor.
+        let floor = rival_ratio(&r, &views, 20.0).unwrap();
+        assert!((floor - 0.2 / 0.9).abs() < 1e-6, "{floor}");
+        // The same slice's same-slice ratio would miss this one: another
+        // slice, 140° away.
+        r[4 * 36 + 18] = 0.891; // θ = 80°, φ = 180°
+        let rival = rival_ratio(&r, &views, 20.0).unwrap();
+        assert!((rival - 0.891 / 0.9).abs() < 1e-6, "{rival}");
+        // A tie is a rival of 1; a zero response is all rivals.
+        r[18] = 0.9;
+        assert_eq!(rival_ratio(&r, &views, 20.0).unwrap(), 1.0);
+        assert_eq!(
+            rival_ratio(&vec![0.0; views.len()], &views, 20.0).unwrap(),
+            1.0
+        );
+        // A separation of 179.9°: only the opposite view could rival.
+        assert!(rival_ratio(&r, &views, 179.9).unwrap() < 0.5);
+        assert!(rival_ratio(&r, &views[1..], 20.0).is_err());
+        assert!(rival_ratio(&r, &views, 180.0).is_err());
     }
 
     #[test]

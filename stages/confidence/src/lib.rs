@@ -29,7 +29,7 @@ mod network;
 pub use eval::{Acceptance, Bin, expected_calibration_error, reliability_bins, roc_auc};
 pub use features::{
     DEFAULT_MIN_PHI_SEPARATION_DEG, FEATURE_COUNT, FeatureParams, Features, ResponseFeatures,
-    normalise_into,
+    normalise_into, rival_ratio,
 };
 pub use model::{
     ClassWeighting, Kind, MAX_HIDDEN, MODEL_FORMAT_VERSION, Model, TrainConfig, train,
@@ -39,6 +39,15 @@ pub use model::{
 /// The paper's acceptance threshold: estimates rated below 0.8 are
 /// rejected.
 pub const DEFAULT_THRESHOLD: f32 = 0.8;
+
+/// An estimate is rejected, whatever the network says, when a view more
+/// than [`DEFAULT_MIN_PHI_SEPARATION_DEG`] away in azimuth matches above
+/// this share of the best ([`rival_ratio`]): two poses that far apart
+/// match as well, and which one is right is a coin's toss. Seen from near
+/// above, a box or a bottle often looks so (docs/accuracy.md, "Two views
+/// that match as well"); the network, trained on few such scenes, accepted
+/// them.
+pub const MAX_RIVAL_RATIO: f32 = 0.99;
 
 /// Name of the view-database section that holds the model.
 pub const SECTION: &str = "confidence";

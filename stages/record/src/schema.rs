@@ -151,6 +151,8 @@ pub const RESULT_SCHEMA: &str = r#"{
     "rating": {"type": "string", "description": "accepted, rejected, unrated, skipped or failed"},
     "confidence": {"type": "number", "description": "null when not rated"},
     "threshold": {"type": "number", "description": "null when not rated"},
+    "rival": {"type": "number", "description": "best match beyond 20 degrees of the estimate's azimuth over the best; above max_rival rejected as ambiguous; null when not rated"},
+    "max_rival": {"type": "number", "description": "null when not rated"},
     "stamp": {"type": "object", "properties": {
       "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
       "wall_ns": {"type": "integer"}}},
