@@ -104,14 +104,7 @@ impl Features {
         params: &FeatureParams,
     ) -> Result<Features, ConfidenceError> {
         params.validate()?;
-        let (best, g) = scan_response(response)?;
-        if views.len() != response.len() {
-            return Err(ConfidenceError::LengthMismatch {
-                what: "views",
-                expected: response.len(),
-                found: views.len(),
-            });
-        }
+        let (best, g) = scan_with_views(response, views)?;
         check_slices(slices, response.len())?;
         let s_star = slices
             .iter()
@@ -261,14 +254,7 @@ pub fn rival_ratio(
         min_phi_separation_deg,
     }
     .validate()?;
-    let (best, g) = scan_response(response)?;
-    if views.len() != response.len() {
-        return Err(ConfidenceError::LengthMismatch {
-            what: "views",
-            expected: response.len(),
-            found: views.len(),
-        });
-    }
+    let (best, g) = scan_with_views(response, views)?;
     if let Some(index) = views.iter().position(|v| !v.phi_deg.is_finite()) {
         return Err(ConfidenceError::InvalidView { index });
     }
@@ -281,6 +267,19 @@ pub fn rival_ratio(
             Some(a.map_or(m, |a| a.max(m)))
         });
     Ok(rival.map_or(0.0, |v| normalised(v, g)))
+}
+
+/// [`scan_response`] of a response that must have a value per view.
+fn scan_with_views(response: &[f32], views: &[View]) -> Result<(usize, f32), ConfidenceError> {
+    let best = scan_response(response)?;
+    if views.len() != response.len() {
+        return Err(ConfidenceError::LengthMismatch {
+            what: "views",
+            expected: response.len(),
+            found: views.len(),
+        });
+    }
+    Ok(best)
 }
 
 /// Checks that the slices cover `0..n` contiguously, in order, each
