@@ -48,6 +48,7 @@ fn renderer(object: &Arc<Object>, background: Background, seed: u64, shift_px: f
             effects: Default::default(),
             textures: Default::default(),
             occlusion: 0.0,
+            occluder: None,
             light_azimuth_deg: 0.0,
         },
         seed,

@@ -34,7 +34,7 @@ pub struct Family {
 
 /// The families and levels measured; the clean scene is level "clean" of
 /// every family's row set.
-pub const FAMILIES: [Family; 11] = [
+pub const FAMILIES: [Family; 12] = [
     Family {
         name: "exposure",
         unit: "x linear light",
@@ -78,6 +78,11 @@ pub const FAMILIES: [Family; 11] = [
     Family {
         name: "occlusion",
         unit: "share of the width",
+        levels: &[0.1, 0.2, 0.3],
+    },
+    Family {
+        name: "occluding_object",
+        unit: "share of the width, another object in front",
         levels: &[0.1, 0.2, 0.3],
     },
     Family {
@@ -195,7 +200,28 @@ const MOTION_BLUR_DEG: f32 = 30.0;
 /// 2-5).
 const READ_NOISE_E: f32 = 3.0;
 
-fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneConfig {
+/// The population the `occluding_object` family's occluders are drawn
+/// from (`generated-999000` ..): one no protocol measures by default.
+const OCCLUDER_POPULATION: u64 = 999;
+
+/// The object that hides the target in the `occluding_object` family's
+/// scenes of `scene_seed`: a generated object of [`OCCLUDER_POPULATION`].
+fn occluder_for(scene_seed: u64) -> Result<Arc<Object>, EvalError> {
+    let name = format!(
+        "{}{}",
+        acch_capture::GENERATED_PREFIX,
+        OCCLUDER_POPULATION * 1000 + scene_seed % 1000
+    );
+    Ok(Arc::new(Object::builtin(&name)?))
+}
+
+/// The scene of `config` under `condition`; `scene_seed` draws the
+/// occluding object.
+fn perturbed(
+    mut config: SceneConfig,
+    condition: Option<(&str, f64)>,
+    scene_seed: u64,
+) -> Result<SceneConfig, EvalError> {
     let fx = &mut config.effects;
     match condition {
         None => {}
@@ -214,11 +240,15 @@ fn perturbed(mut config: SceneConfig, condition: Option<(&str, f64)>) -> SceneCo
             fx.read_noise_e = READ_NOISE_E;
         }
         Some(("occlusion", v)) => config.occlusion = v as f32,
+        Some(("occluding_object", v)) => {
+            config.occlusion = v as f32;
+            config.occluder = Some(occluder_for(scene_seed)?);
+        }
         Some(("light_direction", v)) => config.light_azimuth_deg = v as f32,
         // The camera's distance is the view's, not the scene's.
         Some(_) => {}
     }
-    config
+    Ok(config)
 }
 
 /// Runs the robust protocol for `object` on its default database `db`.
@@ -278,7 +308,7 @@ pub fn robust(
             let base =
                 SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
             let seed = protocol::scene_seed(o.seed, b, name_salt(object.name()), 0x726f_6275);
-            let renderer = Renderer::new(perturbed(base, *condition), seed);
+            let renderer = Renderer::new(perturbed(base, *condition, seed)?, seed);
             let set: Vec<Rendered> = views[b]
                 .par_iter()
                 .enumerate()
@@ -784,7 +814,7 @@ mod tests {
         let object = Arc::new(Object::builtin("fruitbox").unwrap());
         let base = SceneConfig::new(object, "A".parse().unwrap());
         for f in &FAMILIES {
-            let changed = perturbed(base.clone(), Some((f.name, f.levels[0])));
+            let changed = perturbed(base.clone(), Some((f.name, f.levels[0])), 7).unwrap();
             let scene_changed = changed.effects != Effects::default()
                 || changed.occlusion != base.occlusion
                 || changed.light_azimuth_deg != base.light_azimuth_deg;

@@ -77,6 +77,10 @@ pub struct SequenceOptions {
     pub frames: usize,
     /// Frame rate of the trajectories (sets how far the arm moves per frame).
     pub fps: f64,
+    /// How long the camera's shutter is open, seconds (at most a frame
+    /// period): the camera moves along the trajectory meanwhile and each
+    /// frame blurs along that motion; 0 = an instant.
+    pub shutter_s: f64,
     /// Elevation band the trajectories sweep, degrees (min, max).
     pub theta_band: (f64, f64),
     /// Re-view episodes per background.
@@ -201,6 +205,8 @@ pub struct SequenceReport {
     pub frames_per_trajectory: usize,
     /// Their frame rate.
     pub fps: f64,
+    /// The camera's exposure, milliseconds (0: an instant).
+    pub shutter_ms: f64,
     /// Lowest elevation of the trajectories, degrees.
     pub theta_min_deg: f64,
     /// Highest elevation of the trajectories, degrees.
@@ -261,6 +267,14 @@ pub fn sequence(
     if !(o.fps.is_finite() && o.fps > 0.0) {
         return Err(EvalError::Input(format!(
             "--fps {} must be finite and > 0",
+            o.fps
+        )));
+    }
+    if !(o.shutter_s.is_finite() && (0.0..=1.0 / o.fps).contains(&o.shutter_s)) {
+        return Err(EvalError::Input(format!(
+            "--shutter-ms {} must be 0 up to a frame period ({:.1} ms at --fps {})",
+            o.shutter_s * 1000.0,
+            1000.0 / o.fps,
             o.fps
         )));
     }
@@ -357,6 +371,7 @@ pub fn sequence(
         trajectories: o.trajectories,
         frames_per_trajectory: o.frames,
         fps: o.fps,
+        shutter_ms: o.shutter_s * 1000.0,
         theta_min_deg: theta_min,
         theta_max_deg: theta_max,
         database_min_theta_deg: database_min_theta,
@@ -421,7 +436,11 @@ fn run_trajectory(
     let mut out = Vec::with_capacity(o.frames);
     let mut img = acch_capture::Rendered::default();
     for frame in trajectory.frames().take(o.frames) {
-        renderer.render_into(&frame.view, scene.wrapping_add(frame.index), &mut img);
+        renderer.render_moving_into(
+            trajectory.during(frame.index, o.shutter_s),
+            scene.wrapping_add(frame.index),
+            &mut img,
+        );
         let result = chain.process(
             &protocol::frame_of(&img, frame.index, true, object.radius_m()),
             img.image.as_raw(),
@@ -570,11 +589,12 @@ impl SequenceReport {
     pub fn print(&self) {
         let r = self;
         println!(
-            "sequence · {} · {} trajectories x {} frames at {} fps per background, θ in [{}, {}] (database from {}) · confidence threshold {}",
+            "sequence · {} · {} trajectories x {} frames at {} fps, shutter {} ms, per background, θ in [{}, {}] (database from {}) · confidence threshold {}",
             r.object,
             r.trajectories,
             r.frames_per_trajectory,
             r.fps,
+            r.shutter_ms,
             r.theta_min_deg,
             r.theta_max_deg,
             r.database_min_theta_deg,

@@ -99,6 +99,11 @@ pub struct PipelineConfig {
     /// The simulated camera rolls about its optical axis within ±this,
     /// degrees (0: upright).
     pub camera_roll_deg: f64,
+    /// How long the simulated camera's shutter is open, milliseconds, at
+    /// most a frame period: the camera moves along its trajectory
+    /// meanwhile and the frame is blurred along that motion (0: an
+    /// instant, no motion blur).
+    pub camera_shutter_ms: f64,
     /// The simulated scene's light: its linear exposure against the
     /// training light's (1: the same).
     pub camera_exposure: f64,
@@ -227,6 +232,7 @@ impl Default for PipelineConfig {
             mesh_unit_m: None,
             roll_search_deg: None,
             camera_roll_deg: 0.0,
+            camera_shutter_ms: 0.0,
             light_search_per_frame: 0,
             camera_exposure: 1.0,
             camera_colour_temp_k: acch_core::light::TRAINING_LIGHT_K as f64,
@@ -393,6 +399,17 @@ impl PipelineConfig {
                 "camera_colour_temp_k",
                 &self.camera_colour_temp_k,
                 "must be 1000..=15000 kelvin",
+            ));
+        }
+        // The synthetic trajectory runs at 30 fps when the stream is free.
+        let frame_ms = 1000.0 / if self.fps > 0.0 { self.fps } else { 30.0 };
+        if !(self.camera_shutter_ms.is_finite()
+            && (0.0..=frame_ms).contains(&self.camera_shutter_ms))
+        {
+            return Err(bad(
+                "camera_shutter_ms",
+                &self.camera_shutter_ms,
+                "must be 0 up to a frame period (1000 / fps milliseconds)",
             ));
         }
         if !(self.camera_roll_deg.is_finite() && (0.0..=180.0).contains(&self.camera_roll_deg)) {
@@ -746,6 +763,7 @@ impl PipelineConfig {
             fps: self.fps,
             elevation_deg: (lo, hi),
             roll_deg: self.camera_roll_deg,
+            shutter_s: self.camera_shutter_ms / 1000.0,
             light: (
                 self.camera_exposure as f32,
                 self.camera_colour_temp_k as f32,
@@ -899,6 +917,8 @@ mod tests {
             ("height = 100000", "height"),
             ("frame_history = 0", "frame_history"),
             ("camera_exposure = 0.0", "camera_exposure"),
+            ("camera_shutter_ms = 40.0", "camera_shutter_ms"),
+            ("camera_shutter_ms = -1.0", "camera_shutter_ms"),
             ("camera_colour_temp_k = 100.0", "camera_colour_temp_k"),
             ("roll_search_deg = 200.0", "roll_search_deg"),
             ("transport = \"udp\"", "transport"),

@@ -114,6 +114,10 @@ pub struct SyntheticCamera {
     /// The scene's light against the training light's: its linear
     /// exposure and colour temperature, kelvin (`acch_capture::Effects`).
     pub light: (f32, f32),
+    /// How long the shutter is open, seconds (at most a frame period):
+    /// the camera moves along the trajectory meanwhile and the frame is
+    /// blurred along that motion; 0 = an instant, no motion blur.
+    pub shutter_s: f64,
 }
 
 impl SyntheticCamera {
@@ -446,6 +450,8 @@ enum Kind {
         seed: u64,
         /// The object's real bounding radius: the renderer's unit, metres.
         radius_m: f64,
+        /// How long the shutter is open, seconds.
+        shutter_s: f64,
     },
     Group {
         renderer: Box<acch_capture::MultiRenderer>,
@@ -504,6 +510,7 @@ impl Source {
                         },
                         textures: c.textures,
                         occlusion: 0.0,
+                        occluder: None,
                         light_azimuth_deg: 0.0,
                     },
                     c.seed,
@@ -524,6 +531,7 @@ impl Source {
                     intrinsics: Intrinsics::from(&c.intrinsics()),
                     seed: c.seed,
                     radius_m,
+                    shutter_s: c.shutter_s,
                 }
             }
             SourceSpec::Group(g) => {
@@ -701,11 +709,11 @@ impl Source {
                 intrinsics,
                 seed,
                 radius_m,
+                shutter_s,
             } => {
-                let view = trajectory.frame(sequence).view;
                 let mut buffer = self.spare.pop().unwrap_or_else(|| template.clone());
-                renderer.render_into(
-                    &view,
+                renderer.render_moving_into(
+                    trajectory.during(sequence, *shutter_s),
                     acch_capture::frame_seed(*seed, sequence as usize),
                     &mut buffer,
                 );
@@ -821,5 +829,56 @@ impl Source {
                 }))
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame `index` of the simulated camera with its shutter open for
+    /// `shutter_s`.
+    fn synthetic_frame(shutter_s: f64, index: u64) -> Produced {
+        let object = Arc::new(Object::builtin("fruitbox").expect("built-in object"));
+        let camera = SyntheticCamera {
+            distance_m: acch_capture::DEFAULT_DISTANCE * object.radius_m(),
+            object,
+            background: Background::A,
+            textures: acch_capture::TextureSet::HeldOut,
+            seed: 2,
+            width: 320,
+            height: 240,
+            fps: 30.0,
+            elevation_deg: (45.5, 89.5),
+            roll_deg: 0.0,
+            light: (1.0, acch_core::light::TRAINING_LIGHT_K),
+            shutter_s,
+        };
+        let mut source = Source::open(&SourceSpec::Synthetic(camera), (320, 240), index)
+            .expect("the synthetic camera opens");
+        source.next_frame().expect("a frame").expect("not ended")
+    }
+
+    #[test]
+    fn an_open_shutter_blurs_the_frame_and_keeps_its_truth() {
+        let still = synthetic_frame(0.0, 40);
+        let moving = synthetic_frame(1.0 / 30.0, 40);
+        let truth = |p: &Produced| p.header.envelope.frame.truth;
+        assert!(matches!(truth(&still), Maybe::Present(_)));
+        assert_eq!(truth(&still), truth(&moving));
+        let changed = still
+            .pixels
+            .bytes()
+            .iter()
+            .zip(moving.pixels.bytes())
+            .filter(|(a, b)| a != b)
+            .count();
+        // The camera moves about a degree in a frame: the texture smears,
+        // not the whole frame.
+        let n = still.pixels.bytes().len();
+        assert!(
+            changed > n / 20 && changed < n,
+            "{changed} of {n} bytes changed"
+        );
     }
 }

@@ -65,6 +65,11 @@ pub struct EvalArgs {
     /// 10° in θ per 44° of elevation band and 30° in φ per second).
     #[arg(long, default_value_t = 5.0)]
     fps: f64,
+    /// sequence: how long the camera's shutter is open, milliseconds (at
+    /// most 1000 / --fps): the camera moves along the trajectory meanwhile
+    /// and each frame blurs along that motion. 0 = an instant.
+    #[arg(long, default_value_t = 0.0)]
+    shutter_ms: f64,
     /// sequence: lowest elevation of the trajectories, degrees. The default
     /// 20 takes the camera below the database's 45°, as a real arm's does
     /// (and as the confidence network's training scenes); 45.5 keeps it in
@@ -258,6 +263,7 @@ pub fn run(args: EvalArgs) -> Result<()> {
                 trajectories: args.trajectories,
                 frames: args.frames,
                 fps: args.fps,
+                shutter_s: args.shutter_ms / 1000.0,
                 theta_band: (args.theta_min, args.theta_max),
                 episodes: args.n.unwrap_or(50),
                 max_moves: args.max_moves,

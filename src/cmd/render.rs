@@ -180,6 +180,12 @@ pub struct RenderArgs {
         allow_negative_numbers = true
     )]
     occlusion: f32,
+    /// What hides --occlusion: another object instead of the grey bar (a
+    /// built-in name such as `can`, `generated-N`, or a mesh file), held
+    /// upright in front of the target at half the camera's distance and
+    /// stretched over the bar's place; its outline hides up to the share.
+    #[arg(long, value_name = "OBJECT", requires = "occlusion")]
+    occluder: Option<String>,
     /// Degrees the light is turned about the vertical from the training
     /// light's direction: the object lit from another side (0: as the
     /// training views are lit; 180: from the opposite side).
@@ -321,6 +327,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
     let object = args.object.load()?;
     let radius_m = object.radius_m();
+    let occluder = match args.occluder.as_deref() {
+        None => None,
+        Some(spec) => {
+            let mut objects = super::common::load_objects(spec, 0, Default::default())
+                .with_context(|| format!("--occluder {spec}"))?;
+            if objects.len() != 1 {
+                bail!("--occluder {spec}: name one object, not {}", objects.len());
+            }
+            objects.pop()
+        }
+    };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output directory {}", args.out.display()))?;
 
@@ -350,6 +367,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         textures: args.textures,
         occlusion: args.occlusion,
+        occluder,
         light_azimuth_deg: args.light_azimuth_deg,
     };
     let start = Instant::now();

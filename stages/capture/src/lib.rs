@@ -63,7 +63,10 @@ pub use multi::{
     ObjectTruth, SceneLight, view_from,
 };
 pub use object::{BUILTIN_OBJECTS, ModelInfo, Object, UpAxis};
-pub use render::{BBox, GroundTruth, Rendered, Renderer, SceneConfig, mask_bbox};
+pub use render::{
+    BBox, GroundTruth, MAX_EXPOSURE_SAMPLES, Rendered, Renderer, SceneConfig, exposure_samples,
+    mask_bbox,
+};
 pub use trajectory::{Frames, Trajectory, TrajectoryFrame};
 pub use views::ViewSpec;
 

@@ -15,6 +15,7 @@ use crate::object::Object;
 use crate::raster::{Frame, draw_object, draw_table, light_world};
 use crate::texture::Texture;
 use crate::{Intrinsics, ViewPose};
+use acch_core::light::{linear_to_srgb, srgb_to_linear};
 
 /// What to render: the target object, its surroundings, the camera and the
 /// image degradations.
@@ -35,6 +36,11 @@ pub struct SceneConfig {
     /// drawn from the frame seed; the mask keeps only what stays visible.
     /// 0 = none.
     pub occlusion: f32,
+    /// What hides `occlusion` of the object: `None`, the grey bar; an
+    /// object, that object held upright in front of the target at half
+    /// the camera's distance, stretched over the bar's place (its inks
+    /// and shading, not one grey; its outline hides up to the share).
+    pub occluder: Option<Arc<Object>>,
     /// Degrees the light is turned about the world's vertical from the
     /// training light's direction (the object lit from another side, as
     /// by a room's lamp once the object is turned on the table); 0 = the
@@ -52,6 +58,7 @@ impl SceneConfig {
             effects: Effects::default(),
             textures: TextureSet::default(),
             occlusion: 0.0,
+            occluder: None,
             light_azimuth_deg: 0.0,
         }
     }
@@ -124,6 +131,10 @@ pub struct Rendered {
 struct Scratch {
     depth: Vec<f32>,
     blur: Vec<f32>,
+    /// A moving exposure's sum of linear colour, and the view being drawn.
+    sum: Vec<f32>,
+    sub_rgb: Vec<u8>,
+    sub_mask: Vec<u8>,
 }
 
 thread_local! {
@@ -204,6 +215,25 @@ impl Renderer {
     /// Renders one view into `out`, reusing its buffers (and per-thread
     /// scratch memory): no allocation once the sizes are established.
     pub fn render_into(&self, view: &ViewPose, frame_seed: u64, out: &mut Rendered) {
+        self.render_moving_into(|_| *view, frame_seed, out);
+    }
+
+    /// Renders a frame whose camera moves while the shutter is open, as a
+    /// camera on a moving arm sees it: `path(s)` is the camera's view at
+    /// the share `s` in [-0.5, 0.5] of the exposure (0: the frame's own
+    /// time). The image is the mean, in linear light as a sensor
+    /// integrates it, of views spaced so that nothing in the image moves
+    /// more than about a pixel between two ([`exposure_samples`]); the
+    /// mask and the ground truth are those of the frame's own view, and
+    /// the occluder and the effects are applied once, to the mean. A
+    /// camera that does not move renders exactly as
+    /// [`Renderer::render_into`].
+    pub fn render_moving_into(
+        &self,
+        path: impl Fn(f64) -> ViewPose,
+        frame_seed: u64,
+        out: &mut Rendered,
+    ) {
         let k = self.config.intrinsics;
         let (w, h) = (k.width, k.height);
         if out.image.dimensions() != (w, h) {
@@ -212,44 +242,46 @@ impl Renderer {
         if out.mask.dimensions() != (w, h) {
             out.mask = GrayImage::new(w, h);
         }
-        let world_from_camera = view.world_from_camera();
-        let camera_from_world = view.camera_from_world();
+        let view = path(0.0);
+        let samples = exposure_samples(&path(-0.5), &path(0.5), &k);
         let (wu, hu) = (w as usize, h as usize);
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
-            s.depth.clear();
-            s.depth.resize(wu * hu, 0.0);
-            out.mask.fill(0);
-            let mut frame = Frame {
-                rgb: &mut out.image,
-                mask: &mut out.mask,
-                depth: &mut s.depth,
-                w: wu,
-                h: hu,
-            };
-            draw_background(
-                &mut frame,
-                (self.table.as_deref(), self.config.background),
-                &world_from_camera,
-                &k,
-                self.table_z(),
-            );
-            let light_cam = camera_from_world.matrix3 * self.light_world();
-            draw_object(
-                &mut frame,
-                &self.config.object,
-                &camera_from_world,
-                light_cam,
-                &k,
-                255,
-            );
-            for d in &self.distractors {
-                let cam_from_obj = camera_from_world * d.world_from_object;
-                draw_object(&mut frame, &d.object, &cam_from_obj, light_cam, &k, 0);
+            self.draw(&view, &mut out.image, &mut out.mask, &mut s.depth);
+            if samples > 1 {
+                let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
+                s.sum.clear();
+                s.sum.extend(out.image.iter().map(|&v| decode[v as usize]));
+                s.sub_rgb.resize(wu * hu * 3, 0);
+                s.sub_mask.resize(wu * hu, 0);
+                for i in (0..samples).filter(|&i| i != samples / 2) {
+                    let share = i as f64 / (samples - 1) as f64 - 0.5;
+                    self.draw(&path(share), &mut s.sub_rgb, &mut s.sub_mask, &mut s.depth);
+                    for (sum, &v) in s.sum.iter_mut().zip(&s.sub_rgb) {
+                        *sum += decode[v as usize];
+                    }
+                }
+                let n = samples as f32;
+                for (v, &sum) in out.image.iter_mut().zip(&s.sum) {
+                    *v = linear_to_srgb(sum / n);
+                }
             }
             let share = self.config.occlusion;
             if share.is_finite() && share > 0.0 {
-                occlude(&mut out.image, &mut out.mask, share.min(1.0), frame_seed);
+                let share = share.min(1.0);
+                match &self.config.occluder {
+                    None => occlude(&mut out.image, &mut out.mask, share, frame_seed),
+                    Some(occluder) => {
+                        let mut frame = Frame {
+                            rgb: &mut out.image,
+                            mask: &mut out.mask,
+                            depth: &mut s.depth,
+                            w: wu,
+                            h: hu,
+                        };
+                        self.hold_in_front(&mut frame, occluder, &view, share, frame_seed);
+                    }
+                }
             }
             effects::apply(
                 &mut out.image,
@@ -265,11 +297,181 @@ impl Renderer {
             phi_deg: view.phi_deg,
             distance: view.distance,
             roll_deg: view.roll_deg,
-            world_from_camera,
+            world_from_camera: view.world_from_camera(),
             intrinsics: k,
             bbox: mask_bbox(&out.mask),
         };
     }
+
+    /// Draws the scene from `view` into `rgb` and `mask` (the intrinsics'
+    /// size): table, target and distractors, no occluder, no effects.
+    fn draw(&self, view: &ViewPose, rgb: &mut [u8], mask: &mut [u8], depth: &mut Vec<f32>) {
+        let k = self.config.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let world_from_camera = view.world_from_camera();
+        let camera_from_world = view.camera_from_world();
+        depth.clear();
+        depth.resize(w * h, 0.0);
+        mask.fill(0);
+        let mut frame = Frame {
+            rgb,
+            mask,
+            depth,
+            w,
+            h,
+        };
+        draw_background(
+            &mut frame,
+            (self.table.as_deref(), self.config.background),
+            &world_from_camera,
+            &k,
+            self.table_z(),
+        );
+        let light_cam = camera_from_world.matrix3 * self.light_world();
+        draw_object(
+            &mut frame,
+            &self.config.object,
+            &camera_from_world,
+            light_cam,
+            &k,
+            255,
+        );
+        for d in &self.distractors {
+            let cam_from_obj = camera_from_world * d.world_from_object;
+            draw_object(&mut frame, &d.object, &cam_from_obj, light_cam, &k, 0);
+        }
+    }
+}
+
+impl Renderer {
+    /// Draws `occluder` in front of the target over the bar's place for
+    /// `share` ([`bar_span`]): upright in the image, turned about its own
+    /// vertical by an angle drawn from `seed`, at half the camera's
+    /// distance, stretched so its extent fills the bar's columns and rows.
+    /// It moves with the camera (a gripper holding it), so it is drawn
+    /// once, over the integrated frame, in front of everything.
+    fn hold_in_front(
+        &self,
+        frame: &mut Frame,
+        occluder: &Object,
+        view: &ViewPose,
+        share: f32,
+        seed: u64,
+    ) {
+        use rand::{Rng, SeedableRng};
+        let Some((x0, bar, y0, y1)) = bar_span(&*frame.mask, frame.w, frame.h, share, seed) else {
+            return;
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x686f_6c64);
+        let turn = DMat3::from_rotation_z(rng.random_range(0.0..std::f64::consts::TAU));
+        let points: Vec<DVec3> = occluder
+            .tris
+            .iter()
+            .flatten()
+            .map(|v| turn * v.p.as_dvec3())
+            .collect();
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for &p in &points {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        let (mid, extent) = ((lo + hi) / 2.0, (hi - lo).max(DVec3::splat(1e-9)));
+        let k = self.config.intrinsics;
+        // The place's pixel edges, a quarter pixel in (so rounding never
+        // spills the outline onto a neighbour).
+        let (left, right) = (f64::from(x0) - 0.25, f64::from(x0 + bar) - 0.75);
+        let (top, bottom) = (f64::from(y0) - 0.25, f64::from(y1) - 0.75);
+        // The object's x along the image's x, its vertical (z) up the
+        // image (-y), its y away from the camera; its front at half the
+        // camera's distance. Stretch and centre are fitted to the place
+        // by a few rounds, as perspective widens the front.
+        let near = 0.5 * view.distance;
+        let mut across = (right - left) * near / k.fx / extent.x;
+        let mut up = (bottom - top) * near / k.fy / extent.z;
+        let thick = across;
+        let mut centre = glam::DVec2::new(
+            ((left + right) / 2.0 - k.cx) * near / k.fx,
+            ((top + bottom) / 2.0 - k.cy) * near / k.fy,
+        );
+        let place = |p: DVec3, across: f64, up: f64, centre: glam::DVec2| {
+            DVec3::new(
+                across * (p.x - mid.x) + centre.x,
+                -up * (p.z - mid.z) + centre.y,
+                thick * (p.y - lo.y) + near,
+            )
+        };
+        for _ in 0..4 {
+            let (mut u, mut v) = (
+                (f64::INFINITY, f64::NEG_INFINITY),
+                (f64::INFINITY, f64::NEG_INFINITY),
+            );
+            for &p in &points {
+                let c = place(p, across, up, centre);
+                let (pu, pv) = (k.cx + k.fx * c.x / c.z, k.cy + k.fy * c.y / c.z);
+                u = (u.0.min(pu), u.1.max(pu));
+                v = (v.0.min(pv), v.1.max(pv));
+            }
+            across *= (right - left) / (u.1 - u.0).max(1e-9);
+            up *= (bottom - top) / (v.1 - v.0).max(1e-9);
+            centre.x += ((left + right) - (u.0 + u.1)) / 2.0 * near / k.fx;
+            centre.y += ((top + bottom) - (v.0 + v.1)) / 2.0 * near / k.fy;
+        }
+        let upright = DMat3::from_cols(DVec3::X, DVec3::Z, DVec3::NEG_Y);
+        let cam_from_occluder = DAffine3 {
+            matrix3: upright * DMat3::from_diagonal(DVec3::new(across, thick, up)) * turn,
+            translation: place(DVec3::ZERO, across, up, centre),
+        };
+        // In front of everything: the scene's depths are forgotten.
+        frame.depth.fill(0.0);
+        let light_cam = view.camera_from_world().matrix3 * self.light_world();
+        draw_object(frame, occluder, &cam_from_occluder, light_cam, &k, 0);
+    }
+}
+
+/// Where an occluder hiding `share` of the target's width stands, drawn
+/// from `seed`: columns `x0 .. x0 + width` and rows `y0 .. y1`, the
+/// target's height and a tenth more either way; `None` when the target is
+/// not in view.
+fn bar_span(
+    mask: &[u8],
+    w: usize,
+    h: usize,
+    share: f32,
+    seed: u64,
+) -> Option<(u32, u32, u32, u32)> {
+    use rand::{Rng, SeedableRng};
+    let b = bbox_of(mask, w, h)?;
+    let bar = ((b.width as f32 * share).round() as u32).clamp(1, b.width);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x6f63_636c_7564_6572);
+    let x0 = b.x + rng.random_range(0..=b.width - bar);
+    let margin = b.height / 10;
+    let (y0, y1) = (
+        b.y.saturating_sub(margin),
+        (b.y + b.height + margin).min(h as u32),
+    );
+    Some((x0, bar, y0, y1))
+}
+
+/// Most views a moving exposure is integrated from.
+pub const MAX_EXPOSURE_SAMPLES: usize = 65;
+
+/// How many views a moving exposure from `start` to `end` is integrated
+/// from: one per pixel the camera's turn moves the image at its edge, odd
+/// so that the frame's own view is one of them, 1 for a still camera. A
+/// turn about the optical axis moves the corners by the half diagonal per
+/// radian, any other turn the far scene by the focal length; the camera
+/// circles the object, so its translation moves only what is nearer than
+/// half the distance to the object more than that, and nothing is.
+pub fn exposure_samples(start: &ViewPose, end: &ViewPose, k: &Intrinsics) -> usize {
+    let turn = start.world_from_camera_rotation().transpose() * end.world_from_camera_rotation();
+    let cos = (turn.x_axis.x + turn.y_axis.y + turn.z_axis.z - 1.0) / 2.0;
+    let radians = cos.clamp(-1.0, 1.0).acos();
+    let half_diagonal = 0.5 * f64::from(k.width).hypot(f64::from(k.height));
+    let pixels = radians * (k.fx.max(k.fy) + half_diagonal);
+    if !pixels.is_finite() {
+        return 1;
+    }
+    ((pixels.round() as usize).min(MAX_EXPOSURE_SAMPLES - 1) + 1) | 1
 }
 
 /// Draws what lies behind the objects: `table` (the texture of
@@ -324,16 +526,10 @@ const OCCLUDER_RGB: [f32; 3] = [70.0, 72.0, 78.0];
 /// either way, shaded lighter towards its middle like a cylinder, and
 /// clears the mask under it.
 fn occlude(image: &mut RgbImage, mask: &mut GrayImage, share: f32, seed: u64) {
-    use rand::{Rng, SeedableRng};
-    let Some(b) = mask_bbox(mask) else {
+    let (w, h) = mask.dimensions();
+    let Some((x0, bar, y0, y1)) = bar_span(mask, w as usize, h as usize, share, seed) else {
         return;
     };
-    let bar = ((b.width as f32 * share).round() as u32).clamp(1, b.width);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x6f63_636c_7564_6572);
-    let x0 = b.x + rng.random_range(0..=b.width - bar);
-    let (w, h) = mask.dimensions();
-    let margin = b.height / 10;
-    let (y0, y1) = (b.y.saturating_sub(margin), (b.y + b.height + margin).min(h));
     for x in x0..(x0 + bar).min(w) {
         let across = (x - x0) as f32 / bar.max(1) as f32 * 2.0 - 1.0;
         let shade = 0.75 + 0.35 * (1.0 - across * across).sqrt();
@@ -348,8 +544,13 @@ fn occlude(image: &mut RgbImage, mask: &mut GrayImage, share: f32, seed: u64) {
 /// Bounding box of the non-zero pixels of a mask.
 pub fn mask_bbox(mask: &GrayImage) -> Option<BBox> {
     let (w, h) = mask.dimensions();
+    bbox_of(mask, w as usize, h as usize)
+}
+
+/// Bounding box of the non-zero bytes of a `w` x `h` mask, row-major.
+fn bbox_of(mask: &[u8], w: usize, h: usize) -> Option<BBox> {
     let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
-    for (y, row) in mask.as_raw().chunks_exact(w.max(1) as usize).enumerate() {
+    for (y, row) in mask.chunks_exact(w.max(1)).take(h).enumerate() {
         if let Some(first) = row.iter().position(|&m| m != 0) {
             let last = row.iter().rposition(|&m| m != 0).unwrap_or(first);
             x0 = x0.min(first as u32);

@@ -178,6 +178,15 @@ impl Trajectory {
         }
     }
 
+    /// The camera's view while frame `index`'s shutter is open for
+    /// `shutter_s` seconds, centred on the frame's time: the path
+    /// [`crate::Renderer::render_moving_into`] takes (`s` in [-0.5, 0.5],
+    /// 0 the frame's own view).
+    pub fn during(&self, index: u64, shutter_s: f64) -> impl Fn(f64) -> ViewPose + '_ {
+        let time_s = index as f64 / self.fps;
+        move |s| self.view_at(time_s + s * shutter_s)
+    }
+
     /// Frame number `index`.
     pub fn frame(&self, index: u64) -> TrajectoryFrame {
         let time_s = index as f64 / self.fps;

@@ -3,8 +3,8 @@
 use std::sync::Arc;
 
 use acch_capture::{
-    Background, CaptureError, DEFAULT_DISTANCE, Effects, Intrinsics, Object, Renderer, SceneConfig,
-    ViewPose, mask_bbox,
+    Background, CaptureError, DEFAULT_DISTANCE, Effects, Intrinsics, MAX_EXPOSURE_SAMPLES, Object,
+    Renderer, SceneConfig, Trajectory, ViewPose, exposure_samples, mask_bbox,
 };
 use glam::{DVec2, DVec3};
 use image::GrayImage;
@@ -369,6 +369,24 @@ fn effects_do_what_they_say() {
     assert_eq!(blurred.mask.as_raw(), base.mask.as_raw());
 }
 
+/// Mean absolute difference between neighbours one pixel apart along x
+/// and along y, over the whole image.
+fn gradients(img: &image::RgbImage) -> (f64, f64) {
+    let (w, h) = img.dimensions();
+    let (mut gx, mut gy) = (0.0f64, 0.0f64);
+    for y in 0..h - 1 {
+        for x in 0..w - 1 {
+            let p = img.get_pixel(x, y).0;
+            let (px, py) = (img.get_pixel(x + 1, y).0, img.get_pixel(x, y + 1).0);
+            for c in 0..3 {
+                gx += (px[c] as f64 - p[c] as f64).abs();
+                gy += (py[c] as f64 - p[c] as f64).abs();
+            }
+        }
+    }
+    (gx, gy)
+}
+
 #[test]
 fn motion_blur_smears_along_its_direction_only() {
     let v = view(60.0, 30.0);
@@ -381,26 +399,9 @@ fn motion_blur_smears_along_its_direction_only() {
             ..Effects::default()
         })
     };
-    let (w, h) = base.image.dimensions();
-    // Mean absolute difference between neighbours one pixel apart along x
-    // and along y.
-    let grad = |img: &image::RgbImage| {
-        let (mut gx, mut gy) = (0.0f64, 0.0f64);
-        for y in 0..h - 1 {
-            for x in 0..w - 1 {
-                let p = img.get_pixel(x, y).0;
-                let (px, py) = (img.get_pixel(x + 1, y).0, img.get_pixel(x, y + 1).0);
-                for c in 0..3 {
-                    gx += (px[c] as f64 - p[c] as f64).abs();
-                    gy += (py[c] as f64 - p[c] as f64).abs();
-                }
-            }
-        }
-        (gx, gy)
-    };
-    let (bx, by) = grad(&base.image);
-    let (hx, hy) = grad(&streak(0.0).image);
-    let (vx, vy) = grad(&streak(90.0).image);
+    let (bx, by) = gradients(&base.image);
+    let (hx, hy) = gradients(&streak(0.0).image);
+    let (vx, vy) = gradients(&streak(90.0).image);
     // A horizontal streak smooths along x far more than along y (it
     // smooths y's differences too, averaging each row's texture), a
     // vertical one the other way round.
@@ -409,6 +410,122 @@ fn motion_blur_smears_along_its_direction_only() {
     assert!(hx < 0.35 && hx < 0.6 * hy, "{hx} {hy}");
     assert!(vy < 0.35 && vy < 0.6 * vx, "{vy} {vx}");
     assert_eq!(streak(45.0).mask.as_raw(), base.mask.as_raw());
+}
+
+#[test]
+fn a_camera_moving_during_the_exposure_smears_along_its_motion() {
+    let r = renderer("fruitbox", Background::A, Effects::default(), 0);
+    let k = r.config().intrinsics;
+    let v = view(30.0, 30.0);
+    let base = r.render(&v, 3);
+    let moving = |path: &dyn Fn(f64) -> ViewPose| {
+        let mut out = acch_capture::Rendered::default();
+        r.render_moving_into(path, 3, &mut out);
+        out
+    };
+    // A still camera: one view, the same bytes as a plain render.
+    assert_eq!(exposure_samples(&v, &v, &k), 1);
+    let still = moving(&|_| v);
+    assert_eq!(still.image.as_raw(), base.image.as_raw());
+    // Turning about the object's vertical pans the image along x (and
+    // turns it a little about its centre), going up the hemisphere moves
+    // it along y; the frame's own view keeps mask and truth.
+    let azimuth = |deg: f64| move |s: f64| view(30.0, 30.0 + deg * s);
+    let elevation = |deg: f64| move |s: f64| view(30.0 + deg * s, 30.0);
+    let (bx, by) = gradients(&base.image);
+    let kept = |img: &image::RgbImage| {
+        let (gx, gy) = gradients(img);
+        (gx / bx, gy / by)
+    };
+    let across = moving(&azimuth(2.0));
+    let up = moving(&elevation(2.0));
+    let (ax, ay) = kept(&across.image);
+    let (ux, uy) = kept(&up.image);
+    let (lx, ly) = kept(&moving(&azimuth(4.0)).image);
+    eprintln!(
+        "kept of the gradient: azimuth 2° x {ax:.2} y {ay:.2}, 4° x {lx:.2} y {ly:.2}; elevation 2° x {ux:.2} y {uy:.2}"
+    );
+    assert!(ax < 0.8 && uy < 0.8, "azimuth x {ax}, elevation y {uy}");
+    // Each smooths its own direction more than the other does (the
+    // table's perspective stripes lose some of both along any motion).
+    assert!(uy < 0.8 * ux, "elevation: x {ux} y {uy}");
+    assert!(
+        ax / ay < 0.8 * (ux / uy),
+        "azimuth x/y {} vs elevation {}",
+        ax / ay,
+        ux / uy
+    );
+    assert!(lx < 0.9 * ax, "a longer turn smears more: {lx} vs {ax}");
+    for m in [&across, &up] {
+        assert_eq!(m.mask.as_raw(), base.mask.as_raw());
+        assert_eq!(m.truth, base.truth);
+    }
+    // About a pixel between samples: 2° is 0.035 rad, times the focal
+    // length and the half diagonal (500 + 400 px), 31 px.
+    let n = exposure_samples(&view(60.0, 29.0), &view(60.0, 31.0), &k);
+    assert!((31..=33).contains(&n) && n % 2 == 1, "{n} samples");
+    let far = exposure_samples(&view(60.0, 0.0), &view(60.0, 90.0), &k);
+    assert_eq!(far, MAX_EXPOSURE_SAMPLES);
+}
+
+#[test]
+fn a_trajectory_frame_is_exposed_around_its_own_view() {
+    let t = Trajectory::new(5, 30.0, DEFAULT_DISTANCE).expect("trajectory");
+    let during = t.during(12, 1.0 / 30.0);
+    assert_eq!(during(0.0), t.frame(12).view);
+    // The shutter open for a whole frame period reaches half way to the
+    // neighbouring frames.
+    let (before, after) = (t.view_at(11.5 / 30.0), t.view_at(12.5 / 30.0));
+    assert_eq!(during(-0.5), before);
+    assert_eq!(during(0.5), after);
+}
+
+#[test]
+fn another_object_in_front_hides_the_target_within_the_bars_place() {
+    let object = Arc::new(Object::builtin("fruitbox").expect("builtin object"));
+    let render = |share: f32, occluder: Option<&str>| {
+        let mut config = SceneConfig::new(object.clone(), Background::A);
+        config.occlusion = share;
+        config.occluder = occluder.map(|name| Arc::new(Object::builtin(name).expect("occluder")));
+        Renderer::new(config, 4).render(&view(55.0, 120.0), 9)
+    };
+    let clean = render(0.0, None);
+    let bar = render(0.3, None);
+    let held = render(0.3, Some("generated-999001"));
+    let (w, _) = clean.image.dimensions();
+    let pixel = |img: &image::RgbImage, i: usize| img.as_raw()[3 * i..3 * i + 3].to_vec();
+    let (mut in_bar, mut hidden, mut colours) = (0, 0, std::collections::HashSet::new());
+    for i in 0..clean.mask.as_raw().len() {
+        let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+        let under_bar = pixel(&bar.image, i) != pixel(&clean.image, i);
+        if under_bar {
+            in_bar += 1;
+            if pixel(&held.image, i) != pixel(&clean.image, i) {
+                colours.insert(pixel(&held.image, i));
+            }
+        } else {
+            // Outside the bar's place nothing changes.
+            assert_eq!(pixel(&held.image, i), pixel(&clean.image, i), "({x}, {y})");
+            assert_eq!(held.mask.as_raw()[i], clean.mask.as_raw()[i], "({x}, {y})");
+        }
+        if clean.mask.as_raw()[i] != 0 && held.mask.as_raw()[i] == 0 {
+            hidden += 1;
+        }
+    }
+    let (visible, bar_visible) = (count(&clean.mask), count(&bar.mask));
+    let bar_hidden = visible - bar_visible;
+    eprintln!(
+        "target {visible} px; the bar hides {bar_hidden}, the object {hidden} in {} colours; bar place {in_bar} px",
+        colours.len()
+    );
+    assert!(bar_hidden > visible / 5, "{bar_hidden} of {visible}");
+    assert!(
+        hidden <= bar_hidden && hidden > bar_hidden / 2,
+        "{hidden} of {bar_hidden}"
+    );
+    assert_eq!(count(&held.mask), visible - hidden);
+    // Its own inks and shading, not one grey.
+    assert!(colours.len() > 50, "{} colours", colours.len());
 }
 
 #[test]
