@@ -100,9 +100,9 @@ pub struct PipelineConfig {
     /// degrees (0: upright).
     pub camera_roll_deg: f64,
     /// How long the simulated camera's shutter is open, milliseconds, at
-    /// most a frame period: the camera moves along its trajectory
-    /// meanwhile and the frame is blurred along that motion (0: an
-    /// instant, no motion blur).
+    /// most a frame period: the camera moves along its trajectory (or its
+    /// circle around several objects) meanwhile and the frame is blurred
+    /// along that motion (0: an instant, no motion blur).
     pub camera_shutter_ms: f64,
     /// The simulated scene's light: its linear exposure against the
     /// training light's (1: the same).
@@ -745,6 +745,7 @@ impl PipelineConfig {
                 height: self.height,
                 fps: self.fps,
                 elevation_deg: (lo, hi),
+                shutter_s: self.camera_shutter_ms / 1000.0,
             }));
         }
         let object = self.scene_object()?;

@@ -151,6 +151,9 @@ pub struct SyntheticGroup {
     pub fps: f64,
     /// Elevation band the camera swings through, degrees.
     pub elevation_deg: (f64, f64),
+    /// How long the shutter is open, seconds (at most a frame period):
+    /// the frame is blurred along the camera's motion; 0 = an instant.
+    pub shutter_s: f64,
 }
 
 impl SyntheticGroup {
@@ -159,10 +162,11 @@ impl SyntheticGroup {
     /// Period of the elevation swing, seconds.
     const SWING_S: f64 = 12.0;
 
-    /// The camera of frame `sequence`.
-    fn camera(&self, sequence: u64) -> Result<ViewPose, SourceError> {
+    /// The camera of frame `sequence` at the share `s` in [-0.5, 0.5] of
+    /// its exposure (0: the frame's own time).
+    fn camera(&self, sequence: u64, s: f64) -> Result<ViewPose, SourceError> {
         let fps = if self.fps > 0.0 { self.fps } else { 30.0 };
-        let t = sequence as f64 / fps;
+        let t = sequence as f64 / fps + s * self.shutter_s;
         let (lo, hi) = self.elevation_deg;
         let swing = 0.5 - 0.5 * (std::f64::consts::TAU * t / Self::SWING_S).cos();
         Ok(ViewPose::new(
@@ -737,9 +741,12 @@ impl Source {
                 group,
                 intrinsics,
             } => {
-                let camera = group.camera(sequence)?;
+                // Every camera of the exposure is valid if its middle one is
+                // (the elevation stays within the band).
+                let camera = group.camera(sequence, 0.0)?;
                 let seed = acch_capture::frame_seed(group.seed, sequence as usize);
-                let image = renderer.render_image(&camera, seed);
+                let image = renderer
+                    .render_moving_image(|s| group.camera(sequence, s).unwrap_or(camera), seed);
                 let (w, h) = image.dimensions();
                 Ok(Some(Produced {
                     header: FrameHeader::rgb(sequence, w, h, *intrinsics),
@@ -879,6 +886,58 @@ mod tests {
         assert!(
             changed > n / 20 && changed < n,
             "{changed} of {n} bytes changed"
+        );
+    }
+
+    /// Frame `index` of the simulated camera circling two objects at 10
+    /// fps with its shutter open for `shutter_s`.
+    fn group_frame(shutter_s: f64, index: u64) -> Produced {
+        let objects = ["fruitbox", "can"]
+            .map(|name| Arc::new(Object::builtin(name).expect("built-in object")))
+            .to_vec();
+        let group = SyntheticGroup {
+            objects,
+            background: Background::A,
+            textures: acch_capture::TextureSet::HeldOut,
+            seed: 2,
+            width: 320,
+            height: 240,
+            fps: 10.0,
+            elevation_deg: (45.5, 89.5),
+            shutter_s,
+        };
+        let mut source = Source::open(&SourceSpec::Group(group), (320, 240), index)
+            .expect("the group camera opens");
+        source.next_frame().expect("a frame").expect("not ended")
+    }
+
+    /// Sum of the absolute differences between horizontal neighbours.
+    fn horizontal_gradient(rgb: &[u8], width: usize) -> u64 {
+        rgb.chunks_exact(width * 3)
+            .flat_map(|row| row.windows(4).map(|w| w[0].abs_diff(w[3]) as u64))
+            .sum()
+    }
+
+    #[test]
+    fn an_open_shutter_blurs_the_group_along_the_cameras_circle() {
+        // At 10 fps with the shutter open all frame long the camera turns
+        // 2° about the group in the exposure.
+        let still = group_frame(0.0, 40);
+        let moving = group_frame(0.1, 40);
+        let (a, b) = (still.pixels.bytes(), moving.pixels.bytes());
+        assert_eq!(a.len(), b.len());
+        let changed = a.iter().zip(b).filter(|(x, y)| x != y).count();
+        assert!(
+            changed > a.len() / 20,
+            "{changed} of {} bytes changed",
+            a.len()
+        );
+        // The camera turns about the group: the frame smears sideways
+        // (to 0.75 of the still gradient here).
+        let (sharp, smeared) = (horizontal_gradient(a, 320), horizontal_gradient(b, 320));
+        assert!(
+            (smeared as f64) < 0.9 * sharp as f64,
+            "horizontal gradient {smeared} against {sharp} still"
         );
     }
 }

@@ -72,6 +72,11 @@ pub struct Outcomes {
     pub seeds: u64,
     /// Frames a stage could not process (a fault, counted by the stage).
     pub faulted: u64,
+    /// Accepted estimates whose frame carried ground truth (a simulated
+    /// single-object camera or a labelled recording; none from a real
+    /// camera or a scene of several objects): what the errors below are
+    /// over.
+    pub accepted_with_truth: u64,
     /// Mean |Δφ| of the accepted estimates with ground truth, degrees.
     pub accepted_mean_phi_err_deg: f64,
     /// Mean |Δθ| of the accepted estimates with ground truth, degrees.
@@ -131,6 +136,7 @@ impl Outcomes {
                 }
             }
         }
+        o.accepted_with_truth = with_truth;
         let n = with_truth.max(1) as f64;
         o.accepted_mean_phi_err_deg = phi / n;
         o.accepted_mean_theta_err_deg = theta / n;
@@ -277,6 +283,7 @@ mod tests {
         assert_eq!(o.rejected, 1);
         assert_eq!(o.seeds, 2);
         assert_eq!(o.accepted_wrong, 1);
+        assert_eq!(o.accepted_with_truth, 2);
         assert_eq!(o.accepted_wrong_sequences, vec![1]);
         assert!((o.accepted_mean_theta_err_deg - 1.0).abs() < 1e-9);
         assert!((o.accepted_mean_phi_err_deg - 15.0).abs() < 1e-9);

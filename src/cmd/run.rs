@@ -394,17 +394,20 @@ fn print_summary(s: &RunSummary) {
         o.rejected,
         o.seeds
     );
-    println!(
-        "accepted: mean |dphi| {:.2} deg, mean |dtheta| {:.2} deg, {} beyond the failure thresholds{}",
-        o.accepted_mean_phi_err_deg,
-        o.accepted_mean_theta_err_deg,
-        o.accepted_wrong,
-        if s.unrated {
-            " (unrated run: nothing accepted)"
-        } else {
-            ""
-        }
-    );
+    if s.unrated {
+        println!("accepted: none (unrated run: nothing accepted)");
+    } else if o.accepted_with_truth == 0 {
+        // A real camera, or a scene of several objects: nothing to judge by.
+        println!("accepted: no ground truth in the frames, so no errors to report");
+    } else {
+        println!(
+            "accepted: mean |dphi| {:.2} deg, mean |dtheta| {:.2} deg, {} of {} with ground truth beyond the failure thresholds",
+            o.accepted_mean_phi_err_deg,
+            o.accepted_mean_theta_err_deg,
+            o.accepted_wrong,
+            o.accepted_with_truth,
+        );
+    }
     if o.faulted > 0 {
         println!(
             "faults: {} frames a stage could not process (see stage_counters)",

@@ -4,7 +4,7 @@
 //! compression.
 
 use acch_core::light::{
-    TRAINING_LIGHT_K, colour_temperature_gains, linear_to_srgb, srgb_to_linear,
+    TRAINING_LIGHT_K, colour_temperature_gains, linear_to_srgb, srgb_decode_table,
 };
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -161,7 +161,7 @@ fn irwin_hall(rng: &mut ChaCha8Rng) -> f32 {
 /// the read noise's (a normal approximation, close above a few electrons).
 fn sensor_noise(rgb: &mut [u8], full_well: f32, read: f32, seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
+    let decode = srgb_decode_table();
     for v in rgb.iter_mut() {
         let electrons = decode[*v as usize] * full_well;
         let sd = (electrons + read * read).sqrt();
@@ -215,7 +215,7 @@ fn light(rgb: &mut [u8], w: usize, h: usize, fx: &Effects) {
     let exposure = finite(fx.exposure, 1.0);
     let cast = colour_temperature_gains(finite(fx.colour_temp_k, TRAINING_LIGHT_K));
     let vignetting = finite(fx.vignetting, 0.0).min(1.0);
-    let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
+    let decode = srgb_decode_table();
     let (cx, cy) = ((w as f32 - 1.0) / 2.0, (h as f32 - 1.0) / 2.0);
     let corner2 = (cx * cx + cy * cy).max(1.0);
     for (i, px) in rgb.chunks_exact_mut(3).enumerate() {

@@ -17,7 +17,9 @@ use crate::background::{Background, Placed, TextureSet, distractor, hsv};
 use crate::effects::{self, Effects};
 use crate::object::Object;
 use crate::raster::{Frame, draw_object, light_world};
-use crate::render::{BBox, draw_background, mask_bbox, table_of};
+use crate::render::{
+    BBox, draw_background, exposure_samples, integrate_exposure, mask_bbox, table_of,
+};
 use crate::texture::Texture;
 use crate::{CaptureError, Intrinsics, ViewPose};
 
@@ -314,22 +316,66 @@ impl MultiRenderer {
     /// The image alone, without the truth (which draws every object once
     /// more on its own): what a simulated camera sends.
     pub fn render_image(&self, camera: &ViewPose, frame_seed: u64) -> RgbImage {
-        self.draw(camera, frame_seed).0
+        self.render_moving_image(|_| *camera, frame_seed)
+    }
+
+    /// The image of a camera moving while the shutter is open: `path(s)`
+    /// is the camera at the share `s` in [-0.5, 0.5] of the exposure, and
+    /// the image the mean, in linear light, of views spaced so nothing
+    /// moves more than about a pixel between two, as
+    /// [`crate::Renderer::render_moving_into`] exposes one object. A
+    /// camera that does not move renders exactly as
+    /// [`MultiRenderer::render_image`].
+    pub fn render_moving_image(&self, path: impl Fn(f64) -> ViewPose, frame_seed: u64) -> RgbImage {
+        let k = self.scene.intrinsics;
+        let samples = exposure_samples(&path(-0.5), &path(0.5), &k);
+        let (mut image, mut labels, mut depth) = self.canvas();
+        self.draw_scene(&path(0.0), &mut image, &mut labels, &mut depth);
+        let (mut sum, mut sub) = (Vec::new(), Vec::new());
+        integrate_exposure(&mut image, samples, &mut sum, &mut sub, |share, rgb| {
+            self.draw_scene(&path(share), rgb, &mut labels, &mut depth)
+        });
+        let mut blur = Vec::new();
+        let (w, h) = (k.width as usize, k.height as usize);
+        effects::apply(&mut image, w, h, &self.scene.effects, frame_seed, &mut blur);
+        image
     }
 
     /// The image and the labels.
     fn draw(&self, camera: &ViewPose, frame_seed: u64) -> (RgbImage, GrayImage) {
+        let (mut image, mut labels, mut depth) = self.canvas();
+        self.draw_scene(camera, &mut image, &mut labels, &mut depth);
+        let k = self.scene.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let mut blur = Vec::new();
+        effects::apply(&mut image, w, h, &self.scene.effects, frame_seed, &mut blur);
+        (image, labels)
+    }
+
+    /// An image, its labels and depth of the intrinsics' size.
+    fn canvas(&self) -> (RgbImage, GrayImage, Vec<f32>) {
+        let k = self.scene.intrinsics;
+        (
+            RgbImage::new(k.width, k.height),
+            GrayImage::new(k.width, k.height),
+            vec![0f32; k.width as usize * k.height as usize],
+        )
+    }
+
+    /// Draws the scene from `camera` into `rgb` and `labels` (the
+    /// intrinsics' size, `labels` cleared here): table, objects and
+    /// distractors, no effects.
+    fn draw_scene(&self, camera: &ViewPose, rgb: &mut [u8], labels: &mut [u8], depth: &mut [f32]) {
         let k = self.scene.intrinsics;
         let (w, h) = (k.width as usize, k.height as usize);
         let world_from_camera = camera.world_from_camera();
         let camera_from_world = camera.camera_from_world();
-        let mut image = RgbImage::new(k.width, k.height);
-        let mut labels = GrayImage::new(k.width, k.height);
-        let mut depth = vec![0f32; w * h];
+        labels.fill(0);
+        depth.fill(0.0);
         let mut frame = Frame {
-            rgb: &mut image,
-            mask: &mut labels,
-            depth: &mut depth,
+            rgb,
+            mask: labels,
+            depth,
             w,
             h,
         };
@@ -356,9 +402,6 @@ impl MultiRenderer {
             let cam_from_obj = camera_from_world * d.world_from_object;
             draw_object(&mut frame, &d.object, &cam_from_obj, world_light, &k, 0);
         }
-        let mut blur = Vec::new();
-        effects::apply(&mut image, w, h, &self.scene.effects, frame_seed, &mut blur);
-        (image, labels)
     }
 
     /// The light towards which object `i` is shaded, in the camera frame.

@@ -15,7 +15,7 @@ use crate::object::Object;
 use crate::raster::{Frame, draw_object, draw_table, light_world};
 use crate::texture::Texture;
 use crate::{Intrinsics, ViewPose};
-use acch_core::light::{linear_to_srgb, srgb_to_linear};
+use acch_core::light::{linear_to_srgb, srgb_decode_table};
 
 /// What to render: the target object, its surroundings, the camera and the
 /// image degradations.
@@ -135,6 +135,7 @@ struct Scratch {
     sum: Vec<f32>,
     sub_rgb: Vec<u8>,
     sub_mask: Vec<u8>,
+    sub_depth: Vec<f32>,
 }
 
 thread_local! {
@@ -248,24 +249,19 @@ impl Renderer {
         SCRATCH.with(|s| {
             let s = &mut *s.borrow_mut();
             self.draw(&view, &mut out.image, &mut out.mask, &mut s.depth);
-            if samples > 1 {
-                let decode: [f32; 256] = std::array::from_fn(|c| srgb_to_linear(c as u8));
-                s.sum.clear();
-                s.sum.extend(out.image.iter().map(|&v| decode[v as usize]));
-                s.sub_rgb.resize(wu * hu * 3, 0);
-                s.sub_mask.resize(wu * hu, 0);
-                for i in (0..samples).filter(|&i| i != samples / 2) {
-                    let share = i as f64 / (samples - 1) as f64 - 0.5;
-                    self.draw(&path(share), &mut s.sub_rgb, &mut s.sub_mask, &mut s.depth);
-                    for (sum, &v) in s.sum.iter_mut().zip(&s.sub_rgb) {
-                        *sum += decode[v as usize];
-                    }
-                }
-                let n = samples as f32;
-                for (v, &sum) in out.image.iter_mut().zip(&s.sum) {
-                    *v = linear_to_srgb(sum / n);
-                }
-            }
+            // The other views draw into their own mask and depth: the
+            // frame's own are its truth and the occluder's depth test.
+            let (sub_mask, sub_depth) = (&mut s.sub_mask, &mut s.sub_depth);
+            integrate_exposure(
+                &mut out.image,
+                samples,
+                &mut s.sum,
+                &mut s.sub_rgb,
+                |share, rgb| {
+                    sub_mask.resize(wu * hu, 0);
+                    self.draw(&path(share), rgb, sub_mask, sub_depth)
+                },
+            );
             let share = self.config.occlusion;
             if share.is_finite() && share > 0.0 {
                 let share = share.min(1.0);
@@ -364,14 +360,17 @@ impl Renderer {
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x686f_6c64);
         let turn = DMat3::from_rotation_z(rng.random_range(0.0..std::f64::consts::TAU));
-        let points: Vec<DVec3> = occluder
-            .tris
-            .iter()
-            .flatten()
-            .map(|v| turn * v.p.as_dvec3())
-            .collect();
+        // The turned vertices, walked once per round rather than stored:
+        // a frame allocates nothing here.
+        let points = || {
+            occluder
+                .tris
+                .iter()
+                .flatten()
+                .map(|v| turn * v.p.as_dvec3())
+        };
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for &p in &points {
+        for p in points() {
             lo = lo.min(p);
             hi = hi.max(p);
         }
@@ -405,7 +404,7 @@ impl Renderer {
                 (f64::INFINITY, f64::NEG_INFINITY),
                 (f64::INFINITY, f64::NEG_INFINITY),
             );
-            for &p in &points {
+            for p in points() {
                 let c = place(p, across, up, centre);
                 let (pu, pv) = (k.cx + k.fx * c.x / c.z, k.cy + k.fy * c.y / c.z);
                 u = (u.0.min(pu), u.1.max(pu));
@@ -472,6 +471,38 @@ pub fn exposure_samples(start: &ViewPose, end: &ViewPose, k: &Intrinsics) -> usi
         return 1;
     }
     ((pixels.round() as usize).min(MAX_EXPOSURE_SAMPLES - 1) + 1) | 1
+}
+
+/// Turns `rgb`, the view at the middle of an exposure, into the mean in
+/// linear light (as a sensor integrates it) of `samples` views evenly
+/// over the exposure: `draw(share, into)` draws the view at `share` in
+/// [-0.5, 0.5] into `into`, of `rgb`'s size. One sample leaves `rgb` as
+/// it is. `sum` and `sub` are scratch.
+pub(crate) fn integrate_exposure(
+    rgb: &mut [u8],
+    samples: usize,
+    sum: &mut Vec<f32>,
+    sub: &mut Vec<u8>,
+    mut draw: impl FnMut(f64, &mut [u8]),
+) {
+    if samples <= 1 {
+        return;
+    }
+    let decode = srgb_decode_table();
+    sum.clear();
+    sum.extend(rgb.iter().map(|&v| decode[v as usize]));
+    sub.resize(rgb.len(), 0);
+    // The middle sample is `rgb` itself.
+    for i in (0..samples).filter(|&i| i != samples / 2) {
+        draw(i as f64 / (samples - 1) as f64 - 0.5, sub);
+        for (total, &v) in sum.iter_mut().zip(sub.iter()) {
+            *total += decode[v as usize];
+        }
+    }
+    let n = samples as f32;
+    for (v, &total) in rgb.iter_mut().zip(sum.iter()) {
+        *v = linear_to_srgb(total / n);
+    }
 }
 
 /// Draws what lies behind the objects: `table` (the texture of

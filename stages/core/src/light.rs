@@ -18,6 +18,15 @@ pub fn srgb_to_linear(c: u8) -> f32 {
     }
 }
 
+/// [`srgb_to_linear`] of every byte, computed once per process: what
+/// decodes a whole frame (the renderer's light, noise and moving
+/// exposure) without a `powf` per channel.
+pub fn srgb_decode_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::LazyLock<[f32; 256]> =
+        std::sync::LazyLock::new(|| std::array::from_fn(|c| srgb_to_linear(c as u8)));
+    &TABLE
+}
+
 /// sRGB byte of a linear value (clipped to 0-1, as a sensor saturates).
 pub fn linear_to_srgb(c: f32) -> u8 {
     let c = c.clamp(0.0, 1.0);
@@ -74,6 +83,7 @@ mod tests {
     fn the_transfer_round_trips_every_byte() {
         for c in 0..=255u8 {
             assert_eq!(linear_to_srgb(srgb_to_linear(c)), c);
+            assert_eq!(srgb_decode_table()[c as usize], srgb_to_linear(c));
             assert_eq!(relight(c, 1.0), c);
         }
         assert_eq!(relight(200, 4.0), 255);
