@@ -103,6 +103,7 @@ fn nan_negative_and_out_of_range_parameters_name_the_key() {
         ("transport = \"carrier-pigeon\"", "carrier-pigeon"),
         ("source = \"webcam\"", "webcam"),
         ("background = \"mars\"", "mars"),
+        ("smoothing = \"gaussian\"", "smoothing = gaussian"),
         ("[zenoh]\nlisten = \"tcp/127.0.0.1:7447\"", "listen"),
         (
             "objects = [\"fruitbox\", \"can\"]\nobjects_in_view = 3",
@@ -138,6 +139,22 @@ fn nan_and_negative_command_line_values_name_the_option() {
         (
             &["run", "--stall-timeout", "nan", "--frames", "1"][..],
             "stall-timeout",
+        ),
+        (
+            &["run", "--smoothing", "gaussian"][..],
+            "unknown smoothing 'gaussian'",
+        ),
+        // Refused before any database is trained.
+        (
+            &[
+                "run",
+                "--confidence-imaging",
+                "--light-directions",
+                "8",
+                "--frames",
+                "1",
+            ][..],
+            "--confidence-imaging and --light-directions",
         ),
         (
             &[

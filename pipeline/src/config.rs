@@ -55,6 +55,15 @@ pub struct PipelineConfig {
     /// holds light from any side, docs/accuracy.md). Not for `db` or
     /// database files, which are used as they are.
     pub light_directions: usize,
+    /// The cached databases smooth views and frames before quantisation:
+    /// `off` (the paper's raw pixels) or `binomial` (5x5, sigma 1 px; a
+    /// noisy, compressed or blurred camera, docs/accuracy.md). Not for
+    /// `db` or database files.
+    pub smoothing: String,
+    /// The cached databases' confidence networks are trained on scenes
+    /// under other light and a worse camera and read the match value
+    /// (`acch train --confidence-imaging`). Not for `db` or database files.
+    pub confidence_imaging: bool,
     /// `synthetic` (simulated camera), `folder:DIR` (images, labels.csv),
     /// `mcap:FILE` (replays a recording of `acch run --record`),
     /// `gst:PIPELINE` (a GStreamer pipeline as gst-launch-1.0 writes it,
@@ -225,6 +234,8 @@ impl Default for PipelineConfig {
             object_threads: 0,
             cache_dir: None,
             light_directions: 1,
+            smoothing: acch_core::Smoothing::Off.name().into(),
+            confidence_imaging: false,
             source: "synthetic".into(),
             camera_info: None,
             mesh: None,
@@ -301,6 +312,12 @@ impl PipelineConfig {
         })
     }
 
+    /// `smoothing` parsed (off if it names none: [`PipelineConfig::validate`]
+    /// refuses such a configuration first).
+    pub fn smoothing(&self) -> acch_core::Smoothing {
+        self.smoothing.parse().unwrap_or_default()
+    }
+
     /// Checks every value a process would otherwise trip over later: NaN or
     /// negative rates and distances, frame sizes, unknown names.
     pub fn validate(&self) -> Result<(), ConfigError> {
@@ -329,6 +346,9 @@ impl PipelineConfig {
                     "must be a positive number of metres up to 1000",
                 ));
             }
+        }
+        if self.smoothing.parse::<acch_core::Smoothing>().is_err() {
+            return Err(bad("smoothing", &self.smoothing, "must be off or binomial"));
         }
         if !(1..=64).contains(&self.light_directions) {
             return Err(bad(
@@ -922,6 +942,7 @@ mod tests {
             ("camera_shutter_ms = -1.0", "camera_shutter_ms"),
             ("camera_colour_temp_k = 100.0", "camera_colour_temp_k"),
             ("roll_search_deg = 200.0", "roll_search_deg"),
+            ("smoothing = \"gaussian\"", "smoothing"),
             ("transport = \"udp\"", "transport"),
             ("replay = \"fast\"", "replay"),
             ("source = \"camera\"", "source"),

@@ -177,14 +177,8 @@ impl HistogramArgs {
     }
 }
 
-fn parse_smoothing(s: &str) -> Result<Smoothing, String> {
-    match s.to_ascii_lowercase().as_str() {
-        "binomial" => Ok(Smoothing::Binomial),
-        "off" => Ok(Smoothing::Off),
-        _ => Err(format!(
-            "unknown smoothing '{s}' (expected binomial or off)"
-        )),
-    }
+pub(crate) fn parse_smoothing(s: &str) -> Result<Smoothing, String> {
+    s.parse()
 }
 
 fn parse_kind(s: &str) -> Result<HistogramKind, String> {

@@ -148,7 +148,7 @@ pub struct EvalArgs {
     /// each object lit as in training).
     #[arg(long)]
     world_light: bool,
-    /// robust: the databases whose confidence network also saw imaged
+    /// robust, multi: the databases whose confidence network also saw imaged
     /// scenes and may read the absolute match value (`acch train
     /// --confidence-imaging`), trained on first use and cached apart from
     /// the default ones.
@@ -397,7 +397,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
                     .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG),
                 light_directions: args.light_directions as usize,
                 smoothing: args.histogram.smoothing,
-                ..Default::default()
+                imaging: args.confidence_imaging,
             };
             acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)
         })

@@ -47,6 +47,21 @@ pub struct RunArgs {
     /// configuration's.
     #[arg(long, value_name = "K")]
     pub(crate) light_directions: Option<usize>,
+    /// Use (and on first use train) the databases that smooth views and
+    /// frames before quantisation: `off`, or `binomial` for a noisy,
+    /// compressed or blurred camera, with --confidence-imaging the
+    /// configuration measured for such a camera (docs/accuracy.md, "A
+    /// noisy, compressed or blurred camera"; it costs a little accuracy on
+    /// clean frames and precision among several objects). Default off, or
+    /// the configuration's.
+    #[arg(long, value_name = "off|binomial", value_parser = super::common::parse_smoothing)]
+    pub(crate) smoothing: Option<acch_core::Smoothing>,
+    /// Use (and on first use train) the databases whose confidence network
+    /// was trained on scenes under other light and a worse camera and reads
+    /// the absolute match value, so a weak match is rejected (`acch train
+    /// --confidence-imaging`). Not with --light-directions.
+    #[arg(long)]
+    pub(crate) confidence_imaging: bool,
     /// Background of the simulated scene: plain, A, B, C, clutter, clutter-similar.
     #[arg(long)]
     pub(crate) background: Option<Background>,
@@ -237,6 +252,10 @@ impl RunArgs {
         if let Some(k) = self.light_directions {
             cfg.light_directions = k;
         }
+        if let Some(m) = self.smoothing {
+            cfg.smoothing = m.name().into();
+        }
+        cfg.confidence_imaging |= self.confidence_imaging;
         cfg.validate().context("invalid pipeline configuration")?;
         if !cfg.objects.is_empty() {
             if cfg.object_dbs.is_empty() {
@@ -249,6 +268,8 @@ impl RunArgs {
             let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
             let recipe = acch_eval::train::Recipe {
                 light_directions: cfg.light_directions,
+                smoothing: cfg.smoothing(),
+                imaging: cfg.confidence_imaging,
                 ..Default::default()
             };
             let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, recipe)?;
@@ -274,7 +295,8 @@ impl RunArgs {
                     let recipe = acch_eval::train::Recipe {
                         roll_search_deg: acch_eval::multi::OFF_AXIS_ROLL_SEARCH_DEG,
                         light_directions: cfg.light_directions,
-                        ..Default::default()
+                        smoothing: cfg.smoothing(),
+                        imaging: cfg.confidence_imaging,
                     };
                     Ok(acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?.1)
                 }
@@ -341,6 +363,11 @@ pub fn run(args: RunArgs) -> Result<()> {
         eprintln!(
             "acch run: UNRATED: the run rates no estimate, so none is accepted and no seed is published"
         );
+    }
+    // Which recipe a run uses shows in its databases' names.
+    let single = cfg.db.iter().filter(|_| cfg.objects.is_empty());
+    for db in single.chain(&cfg.object_dbs) {
+        eprintln!("acch run: view database {}", db.display());
     }
     // The stage processes carry one object: several run in one process.
     let summary = if args.in_process || !cfg.objects.is_empty() {

@@ -37,6 +37,26 @@ impl Smoothing {
             _ => None,
         }
     }
+
+    /// Its name on command lines and in configurations.
+    pub fn name(self) -> &'static str {
+        match self {
+            Smoothing::Off => "off",
+            Smoothing::Binomial => "binomial",
+        }
+    }
+}
+
+impl std::str::FromStr for Smoothing {
+    type Err = String;
+
+    /// `off` or `binomial`, in any case.
+    fn from_str(s: &str) -> Result<Self, String> {
+        [Smoothing::Off, Smoothing::Binomial]
+            .into_iter()
+            .find(|m| m.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| format!("unknown smoothing '{s}' (expected off or binomial)"))
+    }
 }
 
 thread_local! {
@@ -133,6 +153,16 @@ mod tests {
         let (mut rows, mut out) = (Vec::new(), Vec::new());
         binomial_into(rgb, w, h, &mut rows, &mut out);
         out
+    }
+
+    #[test]
+    fn smoothing_is_named_as_it_is_parsed() {
+        for m in [Smoothing::Off, Smoothing::Binomial] {
+            assert_eq!(m.name().parse::<Smoothing>(), Ok(m));
+            assert_eq!(m.name().to_uppercase().parse::<Smoothing>(), Ok(m));
+        }
+        let err = "gaussian".parse::<Smoothing>().unwrap_err();
+        assert!(err.contains("'gaussian'"), "{err}");
     }
 
     #[test]
