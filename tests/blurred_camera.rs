@@ -3,6 +3,10 @@
 //! enough to tell the two apart on the same scenes, so the check can fail.
 //! True masks, so quantisation and matching alone are measured; generated
 //! objects of the development seed (docs/accuracy.md, "A blurred camera").
+//! `acch run --smoothing binomial --confidence-imaging` runs such a
+//! database, and says which.
+
+mod common;
 
 use acch_capture::{Object, Renderer};
 use acch_core::Smoothing;
@@ -10,6 +14,8 @@ use acch_eval::protocol::{self, fails};
 use acch_eval::train::{RenderedTraining, train_rendered};
 use acch_pose::train::{TrainConfig, mask_bbox};
 use acch_pose::{PoseEstimator, Refinement};
+use common::{acch, free_port, ok};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 #[test]
@@ -64,4 +70,65 @@ fn smoothed_views_and_frames_hold_a_blurred_camera_where_raw_pixels_fail() {
         share(raw) >= share(smoothed) + 0.15,
         "raw failed {raw}, smoothed {smoothed}, of {scenes}"
     );
+}
+
+/// `acch run ARGS`: the view database it names, and its summary.
+fn run_naming_database(args: &[&str], dir: &Path) -> (PathBuf, serde_json::Value) {
+    let json = dir.join("summary.json");
+    let mut all = vec!["run", "--in-process", "--frames", "30", "--fps", "0"];
+    all.extend_from_slice(args);
+    all.extend(["--json", json.to_str().unwrap()]);
+    let out = acch(&all, dir);
+    ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let db = err
+        .lines()
+        .find_map(|l| l.strip_prefix("acch run: view database "))
+        .unwrap_or_else(|| panic!("the run names no database: {err}"));
+    let summary = std::fs::read_to_string(&json).unwrap();
+    (db.into(), serde_json::from_str(&summary).unwrap())
+}
+
+#[test]
+fn a_run_for_a_noisy_camera_uses_the_smoothing_imaging_aware_database() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("p.toml");
+    let zenoh = format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port());
+    std::fs::write(&config, &zenoh).unwrap();
+    let cfg = config.to_str().unwrap();
+    let (default, _) = run_naming_database(&["--config", cfg], dir.path());
+    let (robust, summary) = run_naming_database(
+        &[
+            "--config",
+            cfg,
+            "--smoothing",
+            "binomial",
+            "--confidence-imaging",
+        ],
+        dir.path(),
+    );
+    assert_ne!(default, robust);
+    let name = robust.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(name.ends_with("-imaging-smoothed.acchdb"), "{name}");
+    let load = |p: &Path| acch_core::ViewDatabase::load(p).unwrap();
+    assert_eq!(load(&default).palette.smoothing(), Smoothing::Off);
+    assert_eq!(load(&robust).palette.smoothing(), Smoothing::Binomial);
+    // It estimates as a run should: found, accepted, and none wrong.
+    let count = |key: &str| {
+        summary[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{key}: {summary}"))
+    };
+    assert!(count("accepted") >= 24, "{summary}");
+    assert_eq!(count("accepted_with_truth"), count("accepted"));
+    assert_eq!(count("accepted_wrong"), 0, "{summary}");
+    // The configuration's keys choose the same database.
+    std::fs::write(
+        &config,
+        // Top-level keys before the [zenoh] table.
+        format!("smoothing = \"binomial\"\nconfidence_imaging = true\n{zenoh}"),
+    )
+    .unwrap();
+    let (configured, _) = run_naming_database(&["--config", cfg], dir.path());
+    assert_eq!(configured, robust);
 }
