@@ -9,38 +9,20 @@ over R1's ranges of the failure rate (wrong or not found) over every pose,
 and over the observable poses only.
 """
 import csv
-import gzip
 import sys
-from collections import defaultdict
 
-from worst import RANGES
+from worst import RANGES, failure_rate, levels
 
 with open(sys.argv[1]) as f:
     far = {(r["object"], r["background"], r["image"]): float(r["far_difference"]) for r in csv.DictReader(f)}
 limit = float(sys.argv[2])
 hidden = {k for k, d in far.items() if d < limit}
-rows = {}
-for path in sys.argv[3:]:
-    opener = gzip.open if path.endswith(".gz") else open
-    with opener(path, "rt") as f:
-        for r in csv.DictReader(f):
-            rows.setdefault((r["object"], r["family"], r["level"], r["background"], r["image"]), r)
-levels = defaultdict(list)
-for r in rows.values():
-    lo, hi = RANGES.get(r["family"], (None, None))
-    if lo is not None and lo <= float(r["level"]) <= hi:
-        levels[(r["family"], r["level"])].append(r)
-
-
-def rate(rs):
-    return 100 * sum(r["failure"] == "1" for r in rs) / max(1, len(rs))
-
-
+by_level = levels(sys.argv[3:])
 print(f"{len(hidden)} of {len(far)} poses unobservable in phi (a far turn changes them by < {limit} grey levels)")
 for family in RANGES:
-    mine = [v for (f, _), v in levels.items() if f == family]
+    mine = [v for (f, _), v in by_level.items() if f == family]
     if not mine:
         continue
-    every = max(rate(v) for v in mine)
-    seen = max(rate([r for r in v if (r["object"], r["background"], r["image"]) not in hidden]) for v in mine)
+    every = max(failure_rate(v) for v in mine)
+    seen = max(failure_rate([r for r in v if (r["object"], r["background"], r["image"]) not in hidden]) for v in mine)
     print(f"{family:18s} every pose {every:5.1f} %   observable {seen:5.1f} %")

@@ -5,8 +5,11 @@ the accepted % (objects accepting a wrong pose), each the worst over the levels
 of the issue's ranges (max, min, max), and whether all three bounds hold
 (failures <= 10 %, accepted >= 70 %, accepted wrong <= 2 %).
 """
+import csv
+import gzip
 import json
 import sys
+from collections import defaultdict
 
 RANGES = {
     "clean": (0, 0),
@@ -20,6 +23,28 @@ RANGES = {
     "occluding_object": (0, 0.3),
     "distance": (0.7, 1.5),
 }
+
+
+def levels(paths):
+    """Rows of robust --errors CSVs (plain or gzipped) within R1's ranges, each
+    image once, by (family, level)."""
+    rows = {}
+    for path in paths:
+        opener = gzip.open if path.endswith(".gz") else open
+        with opener(path, "rt") as f:
+            for r in csv.DictReader(f):
+                rows.setdefault((r["object"], r["family"], r["level"], r["background"], r["image"]), r)
+    out = defaultdict(list)
+    for r in rows.values():
+        lo, hi = RANGES.get(r["family"], (None, None))
+        if lo is not None and lo <= float(r["level"]) <= hi:
+            out[(r["family"], r["level"])].append(r)
+    return out
+
+
+def failure_rate(rows):
+    """Failures (wrong or not found) among `rows`, %."""
+    return 100 * sum(r["failure"] == "1" for r in rows) / max(1, len(rows))
 
 
 def report(rows):
