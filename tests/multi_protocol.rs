@@ -13,6 +13,7 @@ use serde_json::Value;
 fn two_known_objects_are_found_and_told_apart() {
     let dir = tempfile::tempdir().unwrap();
     let json = dir.path().join("multi.json");
+    let errors = dir.path().join("multi.csv");
     let stdout = ok(&acch(
         &[
             "eval",
@@ -28,10 +29,43 @@ fn two_known_objects_are_found_and_told_apart() {
             "11",
             "--json",
             json.to_str().unwrap(),
+            "--errors",
+            errors.to_str().unwrap(),
         ],
         dir.path(),
     ));
     eprintln!("{stdout}");
+    // Every detection cleared its threshold; every estimate accepted was
+    // rated, its rival within the rule's bound.
+    let csv = std::fs::read_to_string(&errors).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (detected, accepted) = (col("detected"), col("accepted"));
+    let (margin, confidence, rival) = (col("score_margin"), col("confidence"), col("rival"));
+    let (mut detections, mut accepts) = (0, 0);
+    for line in lines {
+        let v: Vec<&str> = line.split(',').collect();
+        let num = |i: usize| v[i].parse::<f64>().unwrap_or(f64::NAN);
+        if v[detected] == "1" {
+            detections += 1;
+            assert!(num(margin) >= 1.0, "{line}");
+        } else {
+            assert!(v[margin].is_empty(), "{line}");
+        }
+        if v[accepted] == "1" {
+            accepts += 1;
+            assert!((0.0..=1.0).contains(&num(confidence)), "{line}");
+            assert!(
+                num(rival) <= acch_confidence::MAX_RIVAL_RATIO as f64,
+                "{line}"
+            );
+        }
+    }
+    assert!(
+        detections > 0 && accepts > 0,
+        "{detections} detections, {accepts} accepted"
+    );
     let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let rows = report["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 6, "3 backgrounds x 2 objects");

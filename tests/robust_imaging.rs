@@ -296,6 +296,16 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
                 );
             }
         }
+        // A detection clears its threshold: its margin is at least 1.
+        let margin = l[col("score_margin")];
+        assert_eq!(
+            margin.is_empty(),
+            l[col("est_theta_deg")].is_empty(),
+            "{l:?}"
+        );
+        if !margin.is_empty() {
+            assert!(margin.parse::<f64>().unwrap() >= 1.0 - 5e-4, "{l:?}");
+        }
         if l[col("accepted")] == "1" {
             assert!(!l[col("confidence")].is_empty(), "{l:?}");
             let rival: f32 = l[col("rival")].parse().unwrap();

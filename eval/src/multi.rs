@@ -235,6 +235,12 @@ struct Judged {
     truth: Option<([f64; 3], f64)>,
     /// The estimate (θ, φ, roll), when one was made.
     estimate: Option<[f32; 3]>,
+    /// The detection's score over its threshold, when one was made.
+    margin: Option<f32>,
+    /// The best view's match value, when estimated.
+    match_value: Option<f32>,
+    /// The verdict's confidence and rival, when rated.
+    rating: Option<(f32, f32)>,
 }
 
 /// Which known object (scene index) covers the most of `window`, if one
@@ -276,11 +282,14 @@ fn judge(
             .pose()
             .done()
             .map(|e| [e.theta_deg, e.phi_deg, e.roll_deg]),
+        match_value: out.pose().done().map(|e| e.best_value),
+        rating: out.rating().verdict().map(|v| (v.confidence, v.rival)),
         ..Judged::default()
     };
     let Some(window) = out.detection().done() else {
         return j;
     };
+    j.margin = Some(window.score / window.threshold.max(f32::MIN_POSITIVE));
     let c = claim(frame, &window.window);
     j.claim = Some(c);
     let Some(truth) = own.filter(|t| c == Some(t.object)) else {
@@ -521,15 +530,16 @@ impl MultiReport {
     pub fn write_errors(&self, path: &Path) -> Result<(), EvalError> {
         use std::fmt::Write as _;
         let mut s = String::from(
-            "background,scene,object,mode,in_scene,counted,detected,right,accepted,theta_deg,phi_deg,roll_deg,hidden,est_theta_deg,est_phi_deg,est_roll_deg,pose_fails\n",
+            "background,scene,object,mode,in_scene,counted,detected,right,accepted,theta_deg,phi_deg,roll_deg,hidden,est_theta_deg,est_phi_deg,est_roll_deg,pose_fails,score_margin,match_value,confidence,rival\n",
         );
         let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.3}"));
+        let opt32 = |v: Option<f32>| opt(v.map(f64::from));
         for (b, scene, o, mode, j) in &self.judged {
             let t = j.truth.map(|t| t.0);
             let e = j.estimate;
             let _ = writeln!(
                 s,
-                "{},{scene},{},{mode},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                "{},{scene},{},{mode},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 BACKGROUNDS[*b].0,
                 self.objects[*o],
                 j.truth.is_some() as u8,
@@ -545,6 +555,10 @@ impl MultiReport {
                 opt(e.map(|e| e[1] as f64)),
                 opt(e.map(|e| e[2] as f64)),
                 j.pose.map_or(String::new(), |p| (p.2 as u8).to_string()),
+                opt32(j.margin),
+                opt32(j.match_value),
+                opt32(j.rating.map(|r| r.0)),
+                opt32(j.rating.map(|r| r.1)),
             );
         }
         std::fs::write(path, s).map_err(|source| EvalError::Io {

@@ -165,6 +165,8 @@ pub struct ImageOutcome {
     /// The best match beyond 20° of the estimate's azimuth over the best
     /// ([`acch_confidence::rival_ratio`]); None: not found.
     pub rival: Option<f32>,
+    /// The detection's score over its threshold; None: not found.
+    pub score_margin: Option<f32>,
 }
 
 /// The robust protocol's report.
@@ -391,6 +393,10 @@ fn measure(
                     match_value: posed.map(|e| e.best_value),
                     confidence: verdict.map(|v| v.confidence),
                     rival,
+                    score_margin: out
+                        .detection()
+                        .done()
+                        .map(|w| w.score / w.threshold.max(f32::MIN_POSITIVE)),
                 })
             },
         )
@@ -676,7 +682,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -694,6 +700,7 @@ impl RobustReport {
                     opt(o.match_value),
                     opt(o.confidence),
                     opt(o.rival),
+                    opt(o.score_margin),
                 );
             }
         }
@@ -793,7 +800,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);
