@@ -289,7 +289,7 @@ fn judge(
     let Some(window) = out.detection().done() else {
         return j;
     };
-    j.margin = Some(window.score / window.threshold.max(f32::MIN_POSITIVE));
+    j.margin = Some(window.margin());
     let c = claim(frame, &window.window);
     j.claim = Some(c);
     let Some(truth) = own.filter(|t| c == Some(t.object)) else {

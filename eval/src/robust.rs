@@ -393,10 +393,7 @@ fn measure(
                     match_value: posed.map(|e| e.best_value),
                     confidence: verdict.map(|v| v.confidence),
                     rival,
-                    score_margin: out
-                        .detection()
-                        .done()
-                        .map(|w| w.score / w.threshold.max(f32::MIN_POSITIVE)),
+                    score_margin: out.detection().done().map(|w| w.margin()),
                 })
             },
         )

@@ -253,8 +253,7 @@ pub fn suppress(windows: &[Option<Window>]) -> Vec<bool> {
 /// [`suppress`] into `keep`, with `order` as scratch (no allocation once
 /// they have grown to the number of lanes).
 fn suppress_into(windows: &[Option<Window>], order: &mut Vec<usize>, keep: &mut Vec<bool>) {
-    let margin =
-        |i: usize| windows[i].map_or(0.0, |w| w.score / w.threshold.max(f32::MIN_POSITIVE));
+    let margin = |i: usize| windows[i].map_or(0.0, |w| w.margin());
     order.clear();
     order.extend((0..windows.len()).filter(|&i| windows[i].is_some()));
     // Unstable sorts do not allocate; ties go to the earlier lane.

@@ -79,6 +79,12 @@ pub struct Window {
 }
 
 impl Window {
+    /// How far the score cleared the threshold (score / threshold):
+    /// comparable between objects whose models score on different scales.
+    pub fn margin(&self) -> f32 {
+        self.score / self.threshold.max(f32::MIN_POSITIVE)
+    }
+
     /// The detection as the algorithms take it.
     pub fn detection(&self) -> Detection {
         Detection {
