@@ -36,13 +36,14 @@ fn two_known_objects_are_found_and_told_apart() {
     ));
     eprintln!("{stdout}");
     // Every detection cleared its threshold; every estimate accepted was
-    // rated, its rival within the rule's bound.
+    // rated, its rival within the rule's bound, not faint and weak.
     let csv = std::fs::read_to_string(&errors).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let (detected, accepted) = (col("detected"), col("accepted"));
     let (margin, confidence, rival) = (col("score_margin"), col("confidence"), col("rival"));
+    let match_value = col("match_value");
     let (mut detections, mut accepts) = (0, 0);
     for line in lines {
         let v: Vec<&str> = line.split(',').collect();
@@ -58,6 +59,13 @@ fn two_known_objects_are_found_and_told_apart() {
             assert!((0.0..=1.0).contains(&num(confidence)), "{line}");
             assert!(
                 num(rival) <= acch_confidence::MAX_RIVAL_RATIO as f64,
+                "{line}"
+            );
+            assert!(
+                !acch_confidence::faint_and_weak(
+                    num(margin) as f32 + 5e-4,
+                    num(match_value) as f32 + 5e-4
+                ),
                 "{line}"
             );
         }

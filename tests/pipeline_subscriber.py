@@ -12,6 +12,12 @@ import time
 
 import zenoh
 
+# acch_confidence::faint_and_weak: an estimate whose detection cleared its
+# threshold by less than this and whose best match is below that is
+# rejected whatever its confidence.
+MIN_CLEAR_DETECTION_MARGIN = 1.3
+MIN_CLEAR_MATCH_VALUE = 0.75
+
 
 def angle_deg(q1, q2):
     """Angle between two rotations given as [x, y, z, w] quaternions."""
@@ -62,24 +68,30 @@ def main():
     accepted = sum(1 for r in results.values() if r["accepted"])
     # Each verdict against its own threshold, from the message alone: an
     # accepted result is rated at or above the threshold, with no rival
-    # above its bar, and seeded (on the seed topic too); a rejected one is
-    # rated below it or has such a rival, and has no seed, there or on the
-    # seed topic.
+    # above its bar, not both faintly detected and weakly matched, and
+    # seeded (on the seed topic too); a rejected one is rated below it,
+    # has such a rival or is faint, and has no seed, there or on the seed
+    # topic.
     bad_verdicts = []
     rejected = 0
     for seq, r in results.items():
         conf, thr = r.get("confidence"), r.get("threshold")
+        margin, value = r.get("detection_margin"), r.get("match_value")
+        faint = (margin is not None and margin < MIN_CLEAR_DETECTION_MARGIN
+                 and (value is None or not value >= MIN_CLEAR_MATCH_VALUE))
         if r["accepted"]:
             ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
                   and conf >= thr and r.get("rival") is not None
                   and r.get("max_rival") is not None and r["rival"] <= r["max_rival"]
+                  and not faint and r.get("faint") is False
                   and r.get("seed") is not None and seq in seeds)
         elif r.get("rating") == "rejected":
             rejected += 1
             rival, max_rival = r.get("rival"), r.get("max_rival")
             ok = (conf is not None and thr is not None
                   and (conf < thr or (rival is not None and max_rival is not None
-                                      and rival > max_rival))
+                                      and rival > max_rival) or faint)
+                  and r.get("faint") is faint
                   and r.get("seed") is None and seq not in seeds)
         else:
             ok = r.get("seed") is None and seq not in seeds

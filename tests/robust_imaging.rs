@@ -280,7 +280,8 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
         .collect();
     assert_eq!(poses.len(), 2 * 3 * 2, "{poses:?}");
     // A match value and a rival exactly where there is an estimate, in
-    // [0, 1]; an accepted image was rated, with no rival above the bar.
+    // [0, 1]; an accepted image was rated, with no rival above the bar,
+    // and is not faint and weak.
     for l in &images {
         for column in ["match_value", "rival"] {
             let value = l[col(column)];
@@ -310,6 +311,16 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
             assert!(!l[col("confidence")].is_empty(), "{l:?}");
             let rival: f32 = l[col("rival")].parse().unwrap();
             assert!(rival <= acch_confidence::MAX_RIVAL_RATIO + 5e-4, "{l:?}");
+            // Not both faintly detected and weakly matched (the CSV's three
+            // decimals can put a value at the bar either side of it).
+            let value = |c: &str| l[col(c)].parse::<f32>().unwrap();
+            assert!(
+                !acch_confidence::faint_and_weak(
+                    value("score_margin") + 5e-4,
+                    value("match_value") + 5e-4
+                ),
+                "{l:?}"
+            );
         }
     }
     assert_eq!(

@@ -132,6 +132,16 @@ pub struct ResultJson<'a> {
     pub rival: Option<f32>,
     /// The largest rival accepted, when rated.
     pub max_rival: Option<f32>,
+    /// Recognition's score for the object's window over its threshold,
+    /// when rated and the region was found by recognition.
+    pub detection_margin: Option<f32>,
+    /// The best view's match value, when rated.
+    pub match_value: Option<f32>,
+    /// Whether the estimate was rejected as faint, when rated: detection
+    /// margin below [`acch_confidence::MIN_CLEAR_DETECTION_MARGIN`] and
+    /// match value below [`acch_confidence::MIN_CLEAR_MATCH_VALUE`],
+    /// whatever its confidence (the object may not be in view).
+    pub faint: Option<bool>,
     /// Time stamps.
     pub stamp: Stamp,
     /// Whether recognition found the object.
@@ -231,6 +241,11 @@ impl<'a> ResultJson<'a> {
             threshold: verdict.map(|v| v.threshold),
             rival: verdict.map(|v| v.rival),
             max_rival: verdict.map(|v| v.max_rival),
+            detection_margin: verdict
+                .map(|v| v.detection_margin)
+                .filter(|m| m.is_finite()),
+            match_value: verdict.map(|v| v.match_value),
+            faint: verdict.map(|v| v.faint()),
             stamp,
             found: m.detection().done().is_some(),
             roi: m.region().done().map(|r| r.to_array()),

@@ -241,7 +241,7 @@ pub fn status_field(pid: u32, key: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stages::{PoseEstimate, Verdict};
+    use crate::stages::{Evidence, PoseEstimate, Verdict};
     use crate::wire::{Maybe, Truth};
 
     fn frame(seq: u64, est: Option<(f32, f32)>, confidence: f32, truth: (f64, f64)) -> Seeded {
@@ -258,7 +258,13 @@ mod tests {
                 phi_deg: p,
                 ..Default::default()
             });
-            let v = Verdict::new(confidence, 0.8, 0.0, 1.0);
+            let evidence = Evidence {
+                confidence,
+                rival: 0.0,
+                detection_margin: f32::INFINITY,
+                match_value: 1.0,
+            };
+            let v = Verdict::new(evidence, 0.8, 1.0);
             m.rated.rating = Rating::Rated(v);
             if v.accepted {
                 m.seeding.seed = Outcome::Done(Default::default());

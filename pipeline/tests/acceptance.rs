@@ -1,5 +1,6 @@
 //! Accepted means rated at or above the threshold with no far view
-//! matching nearly as well, and nothing else: a database without a
+//! matching nearly as well, not both faintly detected and weakly matched,
+//! and nothing else: a database without a
 //! confidence network is refused unless the run is explicitly unrated (and
 //! then nothing is accepted), and a response the network cannot rate is a
 //! counted fault, never an accepted estimate.
@@ -9,7 +10,7 @@ use acch_capture::{
 };
 use acch_core::ViewDatabase;
 use acch_pipeline::stage::{StageCounters, step};
-use acch_pipeline::stages::{BuildError, Confidence, PoseEstimate, Posed, Rating, Seeding};
+use acch_pipeline::stages::{BuildError, Confidence, PoseEstimate, Posed, Rating, Seeding, Window};
 use acch_pipeline::wire::{Fault, Intrinsics, Outcome, PixelRect};
 use acch_pipeline::{Chain, FrameHeader, StageId, StageSettings};
 use std::sync::Arc;
@@ -134,7 +135,9 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
     let verdict = rated.rating.verdict().expect("rated");
     assert_eq!(
         verdict.accepted,
-        verdict.confidence >= verdict.threshold && verdict.rival <= verdict.max_rival
+        verdict.confidence >= verdict.threshold
+            && verdict.rival <= verdict.max_rival
+            && !verdict.faint()
     );
     assert_eq!(counters.total_faults(), 0);
     // One value short: a fault, counted, not accepted, not seeded.
@@ -199,4 +202,55 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
     // Just under the bar: accepted again.
     response[opposite] = 0.9 * acch_confidence::MAX_RIVAL_RATIO * 0.999;
     assert!(rate(&response).accepted);
+}
+
+#[test]
+fn a_faint_detection_matched_weakly_is_rejected_whatever_the_network_says() {
+    let mut db = database(true);
+    let mut model = acch_confidence::Model::load(&db).unwrap();
+    model.set_threshold(0.0).unwrap();
+    model.store(&mut db);
+    let views = db.views().len();
+    let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
+    let mut counters = StageCounters::new(StageId::Confidence);
+    // One clear peak: accepted on its own.
+    let mut response = vec![0.1f32; views];
+    response[0] = 0.9;
+    let bytes: Vec<u8> = response.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let mut rate = |score: Option<f32>, best_value: f32| {
+        let mut input = posed();
+        if let Some(score) = score {
+            input.segmented.recognised.detection = Outcome::Done(Window {
+                score,
+                threshold: 0.4,
+                ..Default::default()
+            });
+        }
+        if let Outcome::Done(p) = &mut input.pose {
+            p.best_value = best_value;
+        }
+        step(&mut confidence, &input, &bytes, &mut [], 0, &mut counters)
+            .rating
+            .verdict()
+            .expect("rated")
+    };
+    // Found 1.1x over recognition's threshold, best match 0.5: the object
+    // may not be in view.
+    let faint = rate(Some(0.44), 0.5);
+    assert!(
+        faint.faint() && !faint.accepted && !faint.ambiguous(),
+        "{faint:?}"
+    );
+    assert!((faint.detection_margin - 1.1).abs() < 1e-5, "{faint:?}");
+    assert_eq!(faint.match_value, 0.5);
+    // Either clear: accepted.
+    assert!(rate(Some(0.44), 0.8).accepted, "a good match");
+    assert!(rate(Some(0.6), 0.5).accepted, "a clear detection");
+    // A region recognition did not find (a given mask) has no margin.
+    let given = rate(None, 0.5);
+    assert!(
+        given.accepted && given.detection_margin.is_infinite(),
+        "{given:?}"
+    );
+    assert_eq!(counters.total_faults(), 0);
 }

@@ -200,6 +200,11 @@ impl Observe for Recording {
                 v.threshold,
                 if v.ambiguous() {
                     format!(", rival {:.3} > {:.3}", v.rival, v.max_rival)
+                } else if v.faint() {
+                    format!(
+                        ", faint: detection {:.2}x, match {:.2}",
+                        v.detection_margin, v.match_value
+                    )
                 } else {
                     String::new()
                 },

@@ -1,7 +1,9 @@
 //! Confidence: the database's network rates the pose stage's response; an
-//! estimate is accepted only when it is rated at or above the threshold
-//! and no view far from it in azimuth matches nearly as well (its rival at
-//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best).
+//! estimate is accepted only when it is rated at or above the threshold,
+//! no view far from it in azimuth matches nearly as well (its rival at
+//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), and it is not
+//! both faintly detected and weakly matched
+//! ([`acch_confidence::faint_and_weak`]).
 //!
 //! A database without a network is refused unless the run is explicitly
 //! unrated ([`StageSettings::unrated`]): then every estimate is marked
@@ -15,6 +17,22 @@ use acch_confidence::Model;
 use acch_core::{View, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_pose::Slice;
+
+/// What an estimate is judged by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Evidence {
+    /// The network's probability that the estimate is within the failure
+    /// thresholds.
+    pub confidence: f32,
+    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// ([`acch_confidence::rival_ratio`]).
+    pub rival: f32,
+    /// Recognition's score for the object's window over its threshold;
+    /// infinity for a region recognition did not find (a given mask).
+    pub detection_margin: f32,
+    /// The best view's match value.
+    pub match_value: f32,
+}
 
 /// The verdict on one estimate.
 #[repr(C)]
@@ -30,22 +48,31 @@ pub struct Verdict {
     pub rival: f32,
     /// The largest rival accepted.
     pub max_rival: f32,
-    /// `confidence >= threshold` and `rival <= max_rival` (NaN in either
-    /// is rejected).
+    /// Recognition's score over its threshold (infinity: a given mask).
+    pub detection_margin: f32,
+    /// The best view's match value.
+    pub match_value: f32,
+    /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
+    /// rejected) and not [`faint`](Self::faint).
     pub accepted: bool,
 }
 
 impl Verdict {
-    /// The verdict on `confidence` against `threshold` and on `rival`
-    /// against `max_rival`.
-    pub fn new(confidence: f32, threshold: f32, rival: f32, max_rival: f32) -> Self {
-        Verdict {
-            confidence,
+    /// The verdict on `evidence`: its confidence against `threshold`, its
+    /// rival against `max_rival`, its detection margin and match value
+    /// against [`acch_confidence::faint_and_weak`].
+    pub fn new(evidence: Evidence, threshold: f32, max_rival: f32) -> Self {
+        let mut v = Verdict {
+            confidence: evidence.confidence,
             threshold,
-            rival,
+            rival: evidence.rival,
             max_rival,
-            accepted: confidence >= threshold && rival <= max_rival,
-        }
+            detection_margin: evidence.detection_margin,
+            match_value: evidence.match_value,
+            accepted: false,
+        };
+        v.accepted = evidence.confidence >= threshold && !v.ambiguous() && !v.faint();
+        v
     }
 
     /// Whether a far view matched too nearly as well (rejected for it,
@@ -54,6 +81,12 @@ impl Verdict {
         use std::cmp::Ordering::{Equal, Less};
         // A NaN rival is ambiguous too.
         !matches!(self.rival.partial_cmp(&self.max_rival), Some(Less | Equal))
+    }
+
+    /// Whether the object was found only faintly and matched weakly
+    /// (rejected for it, whatever the confidence): it may not be in view.
+    pub fn faint(&self) -> bool {
+        acch_confidence::faint_and_weak(self.detection_margin, self.match_value)
     }
 }
 
@@ -215,10 +248,20 @@ impl Stage for Confidence {
             model.feature_params().min_phi_separation_deg,
         )
         .map_err(|_| Fault::Response)?;
-        Ok(Rating::Rated(Verdict::new(
+        let evidence = Evidence {
             confidence,
-            model.threshold(),
             rival,
+            detection_margin: input
+                .segmented
+                .recognised
+                .detection
+                .done()
+                .map_or(f32::INFINITY, |w| w.margin()),
+            match_value: input.pose.done().map_or(f32::NAN, |p| p.best_value),
+        };
+        Ok(Rating::Rated(Verdict::new(
+            evidence,
+            model.threshold(),
             self.max_rival,
         )))
     }
@@ -235,9 +278,19 @@ impl Stage for Confidence {
 mod tests {
     use super::*;
 
+    /// Evidence of a detection that was not judged faint.
+    fn clear(confidence: f32, rival: f32) -> Evidence {
+        Evidence {
+            confidence,
+            rival,
+            detection_margin: f32::INFINITY,
+            match_value: 0.9,
+        }
+    }
+
     #[test]
     fn only_a_rating_at_or_above_the_threshold_without_a_close_rival_is_accepted() {
-        let verdict = |confidence, rival| Verdict::new(confidence, 0.8, rival, 0.99);
+        let verdict = |confidence, rival| Verdict::new(clear(confidence, rival), 0.8, 0.99);
         assert!(Rating::Rated(verdict(0.8, 0.99)).accepted());
         assert!(!Rating::Rated(verdict(0.79, 0.5)).accepted());
         assert!(!Rating::Rated(verdict(f32::NAN, 0.5)).accepted());
@@ -252,9 +305,34 @@ mod tests {
             assert!(!r.accepted(), "{r:?}");
         }
         assert_eq!(
-            Rating::Rated(Verdict::new(0.1, 0.8, 0.5, 0.99)).state(),
+            Rating::Rated(Verdict::new(clear(0.1, 0.5), 0.8, 0.99)).state(),
             "rejected"
         );
         assert_eq!(Rating::Unrated.state(), "unrated");
+    }
+
+    #[test]
+    fn a_faint_detection_with_a_weak_match_is_rejected_whatever_its_rating() {
+        let judged = |detection_margin, match_value| {
+            Verdict::new(
+                Evidence {
+                    detection_margin,
+                    match_value,
+                    ..clear(1.0, 0.5)
+                },
+                0.8,
+                0.99,
+            )
+        };
+        let faint = judged(1.1, 0.5);
+        assert!(
+            faint.faint() && !faint.accepted && !faint.ambiguous(),
+            "{faint:?}"
+        );
+        assert_eq!(Rating::Rated(faint).state(), "rejected");
+        assert!(judged(1.1, 0.8).accepted, "a good match");
+        assert!(judged(2.0, 0.5).accepted, "a clear detection");
+        assert!(judged(f32::INFINITY, 0.3).accepted, "a given mask");
+        assert!(!judged(1.1, f32::NAN).accepted, "no match value");
     }
 }

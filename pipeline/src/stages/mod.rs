@@ -9,7 +9,7 @@ pub mod recognition;
 pub mod seeding;
 pub mod segmentation;
 
-pub use confidence::{Confidence, Rated, Rating, Verdict};
+pub use confidence::{Confidence, Evidence, Rated, Rating, Verdict};
 pub use pose::{Pose, PoseEstimate, Posed, ResponsePayload};
 pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
 pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};

@@ -49,6 +49,32 @@ pub const DEFAULT_THRESHOLD: f32 = 0.8;
 /// them.
 pub const MAX_RIVAL_RATIO: f32 = 0.99;
 
+/// A detection that clears recognition's threshold by less than this
+/// factor is faint ([`faint_and_weak`]).
+pub const MIN_CLEAR_DETECTION_MARGIN: f32 = 1.3;
+
+/// A best match value below this is weak ([`faint_and_weak`]).
+pub const MIN_CLEAR_MATCH_VALUE: f32 = 0.75;
+
+/// Whether an estimate is rejected, whatever the network says, because
+/// recognition found its object only faintly (`detection_margin`, the
+/// window's score over its threshold, below
+/// [`MIN_CLEAR_DETECTION_MARGIN`]) and no view matches it well
+/// (`match_value` below [`MIN_CLEAR_MATCH_VALUE`]). An object that is not
+/// in view at all, found on another object or on the table, looks so; the
+/// network, which reads the response's shape, rates such estimates 0.999
+/// (docs/multi.md, "An object not in view"). A region not found by
+/// recognition (a given mask) has no margin: pass infinity. A match value
+/// that is not a number is weak.
+pub fn faint_and_weak(detection_margin: f32, match_value: f32) -> bool {
+    // A NaN match value is weak too.
+    let clear_match = matches!(
+        match_value.partial_cmp(&MIN_CLEAR_MATCH_VALUE),
+        Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
+    );
+    detection_margin < MIN_CLEAR_DETECTION_MARGIN && !clear_match
+}
+
 /// Name of the view-database section that holds the model.
 pub const SECTION: &str = "confidence";
 
@@ -210,6 +236,17 @@ mod tests {
         assert!(Rating::new(0.8, DEFAULT_THRESHOLD).accepted);
         assert!(!Rating::new(0.79, DEFAULT_THRESHOLD).accepted);
         assert!(!Rating::new(f32::NAN, DEFAULT_THRESHOLD).accepted);
+    }
+
+    #[test]
+    fn only_a_faint_detection_with_a_weak_match_is_faint_and_weak() {
+        assert!(faint_and_weak(1.0, 0.4));
+        assert!(faint_and_weak(1.29, 0.74));
+        assert!(faint_and_weak(1.1, f32::NAN));
+        assert!(!faint_and_weak(1.3, 0.4), "a clear detection");
+        assert!(!faint_and_weak(1.1, 0.75), "a good match");
+        assert!(!faint_and_weak(f32::INFINITY, 0.2), "a given mask");
+        assert!(!faint_and_weak(f32::NAN, 0.2), "no margin to judge by");
     }
 
     #[test]
