@@ -155,14 +155,21 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
     assert_eq!(counters.faults_of(Fault::Response), 2);
 }
 
-#[test]
-fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
+/// A database whose network's threshold is 0, and its confidence stage:
+/// whatever it rates is accepted unless a rule rejects it.
+fn accepting_every_rating() -> (ViewDatabase, Confidence) {
     let mut db = database(true);
     let mut model = acch_confidence::Model::load(&db).unwrap();
     model.set_threshold(0.0).unwrap();
     model.store(&mut db);
+    let confidence = Confidence::new(&db, &settings(false)).unwrap();
+    (db, confidence)
+}
+
+#[test]
+fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
+    let (db, mut confidence) = accepting_every_rating();
     let views = db.views().len();
-    let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
     let mut counters = StageCounters::new(StageId::Confidence);
     let bytes = |r: &[f32]| -> Vec<u8> { r.iter().flat_map(|v| v.to_ne_bytes()).collect() };
     let mut rate = |r: &[f32]| {
@@ -206,12 +213,8 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
 
 #[test]
 fn a_faint_detection_matched_weakly_is_rejected_whatever_the_network_says() {
-    let mut db = database(true);
-    let mut model = acch_confidence::Model::load(&db).unwrap();
-    model.set_threshold(0.0).unwrap();
-    model.store(&mut db);
+    let (db, mut confidence) = accepting_every_rating();
     let views = db.views().len();
-    let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
     let mut counters = StageCounters::new(StageId::Confidence);
     // One clear peak: accepted on its own.
     let mut response = vec![0.1f32; views];
