@@ -64,8 +64,14 @@ pub struct Outcomes {
     pub estimated: u64,
     /// Rated at or above the threshold and seeded: what a robot acts on.
     pub accepted: u64,
-    /// Rated below the threshold.
+    /// Rated but not accepted: below the threshold, ambiguous or faint.
     pub rejected: u64,
+    /// Of the rejected, those with a far view matching nearly as well
+    /// ([`crate::stages::Verdict::ambiguous`]), whatever their rating.
+    pub rejected_ambiguous: u64,
+    /// Of the rejected, those found faintly and matched weakly
+    /// ([`crate::stages::Verdict::faint`]): the object may not be in view.
+    pub rejected_faint: u64,
     /// Estimated but not rated (an unrated run).
     pub unrated_estimates: u64,
     /// Seeds made (every accepted estimate has one).
@@ -113,7 +119,11 @@ impl Outcomes {
             let Some(p) = m.pose().done() else { continue };
             o.estimated += 1;
             match m.rating() {
-                Rating::Rated(v) if !v.accepted => o.rejected += 1,
+                Rating::Rated(v) if !v.accepted => {
+                    o.rejected += 1;
+                    o.rejected_ambiguous += v.ambiguous() as u64;
+                    o.rejected_faint += v.faint() as u64;
+                }
                 Rating::Unrated => o.unrated_estimates += 1,
                 _ => {}
             }
@@ -273,6 +283,22 @@ mod tests {
         m
     }
 
+    /// `m` with its verdict judged on a detection 1.1x over its threshold
+    /// and a best match of 0.5.
+    fn faint(mut m: Seeded) -> Seeded {
+        if let Rating::Rated(v) = m.rated.rating {
+            let evidence = Evidence {
+                confidence: v.confidence,
+                rival: v.rival,
+                detection_margin: 1.1,
+                match_value: 0.5,
+            };
+            m.rated.rating = Rating::Rated(Verdict::new(evidence, v.threshold, v.max_rival));
+            m.seeding.seed = Outcome::Skipped;
+        }
+        m
+    }
+
     #[test]
     fn wrong_accepted_estimates_are_counted_by_the_paper_rule() {
         let results = [
@@ -282,11 +308,14 @@ mod tests {
             // Wrong but rejected: not a wrong accepted pose.
             frame(2, Some((30.0, 10.0)), 0.1, (60.0, 10.0)),
             frame(3, None, 0.0, (60.0, 10.0)),
+            // Rated 0.99, but found faintly and matched weakly.
+            faint(frame(4, Some((60.0, 10.0)), 0.99, (60.0, 10.0))),
         ];
         let o = Outcomes::of(&results);
-        assert_eq!(o.estimated, 3);
+        assert_eq!(o.estimated, 4);
         assert_eq!(o.accepted, 2);
-        assert_eq!(o.rejected, 1);
+        assert_eq!(o.rejected, 2);
+        assert_eq!((o.rejected_faint, o.rejected_ambiguous), (1, 0));
         assert_eq!(o.seeds, 2);
         assert_eq!(o.accepted_wrong, 1);
         assert_eq!(o.accepted_with_truth, 2);

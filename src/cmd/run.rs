@@ -406,6 +406,18 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// The rejected count, with how many a far view's match or a faint
+/// detection rejected whatever their rating.
+fn rejections(o: &acch_pipeline::summary::Outcomes) -> String {
+    if o.rejected_ambiguous + o.rejected_faint == 0 {
+        return o.rejected.to_string();
+    }
+    format!(
+        "{} ({} for a far view matching as well, {} found faintly and matched weakly)",
+        o.rejected, o.rejected_ambiguous, o.rejected_faint
+    )
+}
+
 fn print_summary(s: &RunSummary) {
     let o = &s.outcomes;
     println!(
@@ -418,7 +430,7 @@ fn print_summary(s: &RunSummary) {
         o.found,
         o.estimated,
         o.accepted,
-        o.rejected,
+        rejections(o),
         o.seeds
     );
     if s.unrated {
@@ -445,7 +457,12 @@ fn print_summary(s: &RunSummary) {
         let o = &object.outcomes;
         println!(
             "  {}: found {}, estimated {}, accepted {}, rejected {}, withdrawn for another object {}",
-            object.object, o.found, o.estimated, o.accepted, o.rejected, object.suppressed
+            object.object,
+            o.found,
+            o.estimated,
+            o.accepted,
+            rejections(o),
+            object.suppressed
         );
     }
     if !s.restarts.is_empty() || s.dropped > 0 {
