@@ -116,8 +116,9 @@ pub struct ResultJson<'a> {
     pub object: &'a str,
     /// Frame number.
     pub sequence: u64,
-    /// Whether a pose is reported: estimated, rated at or above the
-    /// threshold, seeded. What a robot acts on.
+    /// Whether a pose is reported: estimated, accepted by the confidence
+    /// stage (rated at or above the threshold, no close rival, not
+    /// faint), seeded. What a robot acts on.
     pub accepted: bool,
     /// The confidence stage's verdict: accepted, rejected, unrated (the
     /// database has no network), skipped (nothing estimated) or failed.

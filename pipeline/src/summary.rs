@@ -62,7 +62,7 @@ pub struct Outcomes {
     pub found: u64,
     /// Pose estimated.
     pub estimated: u64,
-    /// Rated at or above the threshold and seeded: what a robot acts on.
+    /// Accepted by the confidence stage and seeded: what a robot acts on.
     pub accepted: u64,
     /// Rated but not accepted: below the threshold, ambiguous or faint.
     pub rejected: u64,

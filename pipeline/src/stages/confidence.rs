@@ -115,7 +115,8 @@ impl From<Fault> for Rating {
 }
 
 impl Rating {
-    /// Whether the estimate is accepted: rated, at or above the threshold.
+    /// Whether the estimate is accepted: rated, and its verdict accepted
+    /// ([`Verdict::accepted`]).
     pub fn accepted(&self) -> bool {
         matches!(self, Rating::Rated(v) if v.accepted)
     }
