@@ -1,9 +1,9 @@
 //! Accepted means rated at or above the threshold with no far view
 //! matching nearly as well, not both faintly detected and weakly matched,
-//! and nothing else: a database without a
-//! confidence network is refused unless the run is explicitly unrated (and
-//! then nothing is accepted), and a response the network cannot rate is a
-//! counted fault, never an accepted estimate.
+//! and nothing else: a database without a confidence network is refused
+//! unless the run is explicitly unrated (and then nothing is accepted),
+//! and a response the network cannot rate is a counted fault, never an
+//! accepted estimate.
 
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,

@@ -6,7 +6,7 @@ whose margin and match value are both below them would be rejected; per
 pair, how many accepted detections of an object not in the scene the
 multi CSVs keep, how many right accepted ones they lose, and on the robust
 CSV how many wrong accepted estimates are removed and right ones lost.
-The CSVs must come from runs without the rule (before 2026-12-04). The
+The CSVs must come from runs without the rule (before commit 398eb10). The
 bars chosen (1.3, 0.75): the first to keep no absent object and lose no
 right detection among several objects, losing the fewest right single
 objects; from development seeds only (robust 3; multi 3, 5, 11, and 3
