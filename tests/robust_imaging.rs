@@ -307,6 +307,18 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
         if !margin.is_empty() {
             assert!(margin.parse::<f64>().unwrap() >= 1.0 - 5e-4, "{l:?}");
         }
+        // Every frame's measured quality: renders with no noise, no JPEG
+        // and no blur (only the exposure changes) measure as such (noise
+        // 6, JPEG 60 and blur 2 px measure 5.6-5.9, 1.35-2.7 and 0.21-0.24
+        // on the development seed, docs/results/robust/quality).
+        let quality = |c: &str| l[col(c)].parse::<f32>().unwrap();
+        assert!((0.0..2.5).contains(&quality("noise_sigma")), "{l:?}");
+        assert!((0.8..1.2).contains(&quality("blockiness")), "{l:?}");
+        let sharpness = quality("sharpness");
+        assert!(
+            sharpness.is_nan() || (0.25..=0.55).contains(&sharpness),
+            "{l:?}"
+        );
         if l[col("accepted")] == "1" {
             assert!(!l[col("confidence")].is_empty(), "{l:?}");
             let rival: f32 = l[col("rival")].parse().unwrap();

@@ -167,6 +167,8 @@ pub struct ImageOutcome {
     pub rival: Option<f32>,
     /// The detection's score over its threshold; None: not found.
     pub score_margin: Option<f32>,
+    /// The frame's measured noise, blocking and detail.
+    pub quality: acch_core::FrameQuality,
 }
 
 /// The robust protocol's report.
@@ -362,11 +364,18 @@ fn measure(
         .par_iter()
         .enumerate()
         .map_init(
-            || protocol::chain_at(db, distance_m, light_search),
-            |chain, (i, scene)| -> Result<_, EvalError> {
+            || {
+                (
+                    protocol::chain_at(db, distance_m, light_search),
+                    acch_core::QualityMeter::new(),
+                )
+            },
+            |(chain, meter), (i, scene)| -> Result<_, EvalError> {
                 let chain = chain
                     .as_mut()
                     .map_err(|e| EvalError::Worker(e.to_string()))?;
+                let (w, h) = scene.image.dimensions();
+                let quality = meter.measure(scene.image.as_raw(), w, h);
                 let out = chain.process(
                     &protocol::frame_of(scene, i as u64, false, radius_m),
                     scene.image.as_raw(),
@@ -394,6 +403,7 @@ fn measure(
                     confidence: verdict.map(|v| v.confidence),
                     rival,
                     score_margin: out.detection().done().map(|w| w.margin()),
+                    quality,
                 })
             },
         )
@@ -679,7 +689,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3}",
                     self.object,
                     r.family,
                     r.level,
@@ -698,6 +708,9 @@ impl RobustReport {
                     opt(o.confidence),
                     opt(o.rival),
                     opt(o.score_margin),
+                    o.quality.noise_sigma,
+                    o.quality.blockiness,
+                    o.quality.sharpness,
                 );
             }
         }
@@ -797,7 +810,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

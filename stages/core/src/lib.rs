@@ -12,6 +12,7 @@ pub mod histogram;
 pub mod joint;
 pub mod light;
 pub mod palette;
+pub mod quality;
 pub mod smooth;
 
 pub use database::{DbError, View, ViewDatabase};
@@ -21,4 +22,5 @@ pub use histogram::{
 };
 pub use joint::{JointPalette, JointPaletteError};
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};
+pub use quality::{FrameQuality, QualityMeter};
 pub use smooth::Smoothing;

@@ -1,0 +1,330 @@
+//! How clean a frame is: its sensor noise, its JPEG blocking and how much
+//! fine detail blur has left, measured on the frame alone.
+//!
+//! Why: a database trained on sharp views holds on a clean frame and loses
+//! on a noisy, compressed or blurred one, while smoothed views hold there
+//! and cost a little on clean frames (docs/accuracy.md, "A noisy,
+//! compressed or blurred camera"). A measure of the frame, whatever the
+//! object's match, can say which of the two a frame needs: the robust
+//! protocol records it for every image (`--errors`), and choosing the
+//! database by it is measured there (docs/accuracy.md, "Which database a
+//! frame needs: its measured quality"), not yet built into the pipeline.
+
+/// Side of the square blocks whose noise is estimated one by one, pixels.
+const BLOCK: usize = 16;
+
+/// Share of the blocks, the flattest first, whose estimates make the
+/// frame's noise: a frame's texture raises a block's estimate, never
+/// lowers it, so the flattest blocks see the noise alone.
+const FLAT_SHARE: f32 = 0.1;
+
+/// Side of a JPEG coding block, pixels.
+const JPEG_BLOCK: usize = 8;
+
+/// Fewest steps standing out that measure blockiness: with fewer (a flat
+/// table, nothing in view) a handful of edges that happen to lie on the
+/// grid would read as blocking.
+const MIN_BLOCK_STEPS: u64 = 2000;
+
+/// Pixels either side of an edge over which its step is taken.
+const EDGE_REACH: usize = 3;
+
+/// Smallest step, grey levels, of an edge whose sharpness is measured:
+/// weaker ones are texture the noise could make.
+const MIN_EDGE_STEP: f32 = 24.0;
+
+/// A frame's measured quality.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameQuality {
+    /// Additive noise, standard deviation in grey levels per channel
+    /// (Immerkær 1996: the mean absolute response of a mask blind to
+    /// planes, in the flattest tenth of 16x16 blocks, averaged over the
+    /// channels).
+    pub noise_sigma: f32,
+    /// How often a grey step larger than its neighbours along a row
+    /// (column) falls on the boundary of the 8x8 JPEG grid, over the 1 in 8
+    /// of chance: about 1 for an uncompressed frame, above for a blocky
+    /// one. Each such step counts once whatever its size, and a frame with
+    /// fewer than 2000 of them measures 1, so a few strong edges on the
+    /// grid of an otherwise flat frame do not make it blocky.
+    pub blockiness: f32,
+    /// At the frame's strong edges (a step of at least 24 grey levels
+    /// within 3 pixels), the steepest slope over the step, per pixel: about
+    /// 0.5 for an edge one pixel wide, 0.34 blurred by a Gaussian of
+    /// sigma 1 px, 0.2 by 2 px. NaN: no strong edge.
+    pub sharpness: f32,
+}
+
+/// Measures frames, reusing its buffers (no allocation per frame once warm).
+#[derive(Debug, Default)]
+pub struct QualityMeter {
+    blocks: Vec<f32>,
+    grey: Vec<f32>,
+}
+
+impl QualityMeter {
+    /// A meter.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The quality of the packed RGB frame `rgb`, `width` x `height`.
+    /// Frames smaller than 3x3 measure as default (zero).
+    pub fn measure(&mut self, rgb: &[u8], width: u32, height: u32) -> FrameQuality {
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(
+            rgb.len(),
+            3 * w * h,
+            "RGB buffer does not match {width}x{height}"
+        );
+        if w < 3 || h < 3 {
+            return FrameQuality::default();
+        }
+        self.grey.clear();
+        self.grey.extend(
+            rgb.chunks_exact(3)
+                .map(|p| (p[0] as f32 + p[1] as f32 + p[2] as f32) / 3.0),
+        );
+        let grey = &self.grey;
+        let (bw, bh) = ((w - 2).div_ceil(BLOCK), (h - 2).div_ceil(BLOCK));
+        self.blocks.clear();
+        self.blocks.resize(2 * bw * bh, 0.0);
+        let (sums, counts) = self.blocks.split_at_mut(bw * bh);
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                // [1 -2 1; -2 4 -2; 1 -2 1] per channel: zero on any plane.
+                let mut m = 0.0;
+                for ch in 0..3 {
+                    let at = |x: usize, y: usize| rgb[3 * (y * w + x) + ch] as f32;
+                    let corners =
+                        at(x - 1, y - 1) + at(x + 1, y - 1) + at(x - 1, y + 1) + at(x + 1, y + 1);
+                    let sides = at(x - 1, y) + at(x + 1, y) + at(x, y - 1) + at(x, y + 1);
+                    m += (corners - 2.0 * sides + 4.0 * at(x, y)).abs();
+                }
+                let b = (y - 1) / BLOCK * bw + (x - 1) / BLOCK;
+                sums[b] += m / 3.0;
+                counts[b] += 1.0;
+            }
+        }
+        for (s, n) in sums.iter_mut().zip(counts.iter()) {
+            *s /= n.max(1.0);
+        }
+        let flat = ((sums.len() as f32 * FLAT_SHARE).ceil() as usize).clamp(1, sums.len());
+        sums.select_nth_unstable_by(flat - 1, f32::total_cmp);
+        let flat_mean = sums[..flat].iter().sum::<f32>() / flat as f32;
+        FrameQuality {
+            noise_sigma: flat_mean * (std::f32::consts::FRAC_PI_2).sqrt() / 6.0,
+            blockiness: blockiness(grey, w, h),
+            sharpness: sharpness(grey, w, h),
+        }
+    }
+}
+
+/// [`FrameQuality::blockiness`] of `grey`, `w` x `h`, over its rows and
+/// columns (1, chance, when too few steps stand out to tell).
+fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
+    // Steps larger than both neighbours, counted by their place on the grid
+    // (a step into pixel i is on the boundary when i is a multiple of 8):
+    // every place alike, so content does not favour the boundary.
+    let mut by_place = [0u64; JPEG_BLOCK];
+    for (len, lines, stride, line_step) in [(w, h, 1, w), (h, w, w, 1)] {
+        for line in 0..lines {
+            let at = |i: usize| grey[line * line_step + i * stride];
+            let step = |i: usize| (at(i) - at(i - 1)).abs();
+            for i in 2..len.saturating_sub(1) {
+                let s = step(i);
+                if s > 1.0 && s > step(i - 1) && s > step(i + 1) {
+                    by_place[i % JPEG_BLOCK] += 1;
+                }
+            }
+        }
+    }
+    let total: u64 = by_place.iter().sum();
+    if total < MIN_BLOCK_STEPS {
+        1.0
+    } else {
+        (by_place[0] as f64 * JPEG_BLOCK as f64 / total as f64) as f32
+    }
+}
+
+/// The mean, over the strong edges of `grey` along x and along y, of the
+/// steepest central slope over the edge's step (see
+/// [`FrameQuality::sharpness`]).
+fn sharpness(grey: &[f32], w: usize, h: usize) -> f32 {
+    let (mut sum, mut n) = (0f64, 0u64);
+    // Along x (stride 1) over rows, then along y (stride w) over columns.
+    for (len, lines, stride, line_step) in [(w, h, 1, w), (h, w, w, 1)] {
+        if len < 2 * EDGE_REACH + 3 {
+            continue;
+        }
+        for line in 0..lines {
+            let at = |i: usize| grey[line * line_step + i * stride];
+            let slope = |i: usize| (at(i + 1) - at(i - 1)).abs() / 2.0;
+            for i in EDGE_REACH + 1..len - EDGE_REACH - 1 {
+                let s = slope(i);
+                // The steepest point of the edge: a maximum of the slope.
+                if s < slope(i - 1) || s <= slope(i + 1) {
+                    continue;
+                }
+                let (lo, hi) = (i - EDGE_REACH..=i + EDGE_REACH)
+                    .map(at)
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| {
+                        (lo.min(v), hi.max(v))
+                    });
+                if hi - lo >= MIN_EDGE_STEP {
+                    sum += (s / (hi - lo)) as f64;
+                    n += 1;
+                }
+            }
+        }
+    }
+    if n == 0 {
+        f32::NAN
+    } else {
+        (sum / n as f64) as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A 160x120 frame: a grey ramp with a few step edges.
+    fn scene() -> (Vec<u8>, u32, u32) {
+        let (w, h) = (160u32, 120u32);
+        let mut rgb = Vec::with_capacity(3 * (w * h) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                let base = 60.0 + 0.5 * x as f32 + 0.3 * y as f32;
+                let step = if (x / 40 + y / 30) % 2 == 0 {
+                    40.0
+                } else {
+                    0.0
+                };
+                let v = (base + step) as u8;
+                rgb.extend_from_slice(&[v, v, v]);
+            }
+        }
+        (rgb, w, h)
+    }
+
+    fn noisy(rgb: &[u8], sigma: f32, seed: u64) -> Vec<u8> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rgb.chunks_exact(3)
+            .flat_map(|p| {
+                // The same noise in every channel: a grey frame stays grey.
+                let u: f32 = (0..12).map(|_| rng.random::<f32>()).sum::<f32>() - 6.0;
+                let v = (p[0] as f32 + sigma * u).round().clamp(0.0, 255.0) as u8;
+                [v, v, v]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_noise_estimate_follows_added_noise_not_edges() {
+        let (rgb, w, h) = scene();
+        let mut meter = QualityMeter::new();
+        let clean = meter.measure(&rgb, w, h);
+        assert!(clean.noise_sigma < 0.5, "{clean:?}");
+        for sigma in [2.0f32, 4.0, 6.0] {
+            let q = meter.measure(&noisy(&rgb, sigma, 1), w, h);
+            assert!(
+                (q.noise_sigma - sigma).abs() < 0.25 * sigma,
+                "sigma {sigma}: {q:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn steps_on_the_jpeg_grid_raise_blockiness() {
+        let (w, h) = (256usize, 256usize);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let texture: Vec<f32> = (0..w * h).map(|_| rng.random_range(0.0..100.0)).collect();
+        // Each 8x8 block's mean with a little of its detail left, as a
+        // coarse JPEG leaves it.
+        let blocked: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (bx, by) = (i % w / 8 * 8, i / w / 8 * 8);
+                let mean = (0..64)
+                    .map(|k| texture[(by + k / 8) * w + bx + k % 8])
+                    .sum::<f32>()
+                    / 64.0;
+                mean + 0.03 * (texture[i] - mean)
+            })
+            .collect();
+        let rgb = |g: &[f32]| -> Vec<u8> { g.iter().flat_map(|&v| [v as u8 + 50; 3]).collect() };
+        let mut meter = QualityMeter::new();
+        let clean = meter.measure(&rgb(&texture), w as u32, h as u32).blockiness;
+        let blocky = meter.measure(&rgb(&blocked), w as u32, h as u32).blockiness;
+        assert!((0.9..1.1).contains(&clean), "{clean}");
+        assert!(blocky > 3.0, "{blocky}");
+        // A flat frame has no step: chance, not blocky.
+        assert_eq!(meter.measure(&[9; 3 * 64 * 64], 64, 64).blockiness, 1.0);
+    }
+
+    /// Vertical bars 12 px wide of two greys, blurred by a Gaussian of
+    /// `sigma` px (none at 0).
+    fn bars(sigma: f32) -> (Vec<u8>, u32, u32) {
+        let (w, h) = (96u32, 32u32);
+        let value = |x: f32| {
+            if (x / 12.0).rem_euclid(2.0) < 1.0 {
+                60.0
+            } else {
+                180.0
+            }
+        };
+        let row: Vec<f32> = (0..w)
+            .map(|x| {
+                if sigma == 0.0 {
+                    return value(x as f32);
+                }
+                let (mut s, mut k) = (0.0, 0.0);
+                for d in -12i32..=12 {
+                    let g = (-(d * d) as f32 / (2.0 * sigma * sigma)).exp();
+                    s += g * value((x as i32 + d) as f32);
+                    k += g;
+                }
+                s / k
+            })
+            .collect();
+        let rgb = (0..h)
+            .flat_map(|_| {
+                row.iter()
+                    .flat_map(|&v| [v.round() as u8; 3])
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        (rgb, w, h)
+    }
+
+    #[test]
+    fn blur_lowers_the_sharpness_as_the_gaussian_predicts() {
+        let mut meter = QualityMeter::new();
+        let at = |meter: &mut QualityMeter, sigma| {
+            let (rgb, w, h) = bars(sigma);
+            meter.measure(&rgb, w, h).sharpness
+        };
+        let sharp = at(&mut meter, 0.0);
+        let one = at(&mut meter, 1.0);
+        let two = at(&mut meter, 2.0);
+        assert!((sharp - 0.5).abs() < 0.02, "{sharp}");
+        assert!((one - 0.34).abs() < 0.03, "{one}");
+        assert!((0.17..0.26).contains(&two), "{two}");
+        // A flat frame has no edge to measure.
+        assert!(
+            meter
+                .measure(&[128; 3 * 64 * 64], 64, 64)
+                .sharpness
+                .is_nan()
+        );
+    }
+
+    #[test]
+    fn a_tiny_frame_measures_as_zero() {
+        let mut meter = QualityMeter::new();
+        let q = meter.measure(&[0; 12], 2, 2);
+        assert_eq!((q.noise_sigma, q.blockiness), (0.0, 0.0));
+    }
+}
