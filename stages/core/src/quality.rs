@@ -91,18 +91,21 @@ impl QualityMeter {
         self.blocks.resize(2 * bw * bh, 0.0);
         let (sums, counts) = self.blocks.split_at_mut(bw * bh);
         for y in 1..h - 1 {
+            let row = |k: usize| &rgb[3 * k * w..3 * (k + 1) * w];
+            let (above, here, below) = (row(y - 1), row(y), row(y + 1));
+            let block_row = (y - 1) / BLOCK * bw;
             for x in 1..w - 1 {
                 // [1 -2 1; -2 4 -2; 1 -2 1] per channel: zero on any plane.
-                let mut m = 0.0;
-                for ch in 0..3 {
-                    let at = |x: usize, y: usize| rgb[3 * (y * w + x) + ch] as f32;
+                let mut m = 0i32;
+                for i in 3 * x..3 * x + 3 {
+                    let v = |r: &[u8], i: usize| i32::from(r[i]);
                     let corners =
-                        at(x - 1, y - 1) + at(x + 1, y - 1) + at(x - 1, y + 1) + at(x + 1, y + 1);
-                    let sides = at(x - 1, y) + at(x + 1, y) + at(x, y - 1) + at(x, y + 1);
-                    m += (corners - 2.0 * sides + 4.0 * at(x, y)).abs();
+                        v(above, i - 3) + v(above, i + 3) + v(below, i - 3) + v(below, i + 3);
+                    let sides = v(here, i - 3) + v(here, i + 3) + v(above, i) + v(below, i);
+                    m += (corners - 2 * sides + 4 * v(here, i)).abs();
                 }
-                let b = (y - 1) / BLOCK * bw + (x - 1) / BLOCK;
-                sums[b] += m / 3.0;
+                let b = block_row + (x - 1) / BLOCK;
+                sums[b] += m as f32 / 3.0;
                 counts[b] += 1.0;
             }
         }
