@@ -308,11 +308,12 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
             assert!(margin.parse::<f64>().unwrap() >= 1.0 - 5e-4, "{l:?}");
         }
         // Every frame's measured quality: renders with no noise, no JPEG
-        // and no blur (only the exposure changes) measure as such (noise
-        // 6, JPEG 60 and blur 2 px measure 5.6-5.9, 1.35-2.7 and 0.21-0.24
-        // on the development seed, docs/results/robust/quality).
+        // and no blur (only the exposure changes) measure as such (on the
+        // development seed, docs/results/robust/quality: clean and
+        // exposure frames 0.18-2.42, 0.97-1.02 and 0.29-0.50; noise 4,
+        // JPEG 75 and blur 2 px 3.7 and up, 1.5 and up, 0.26 and down).
         let quality = |c: &str| l[col(c)].parse::<f32>().unwrap();
-        assert!((0.0..2.5).contains(&quality("noise_sigma")), "{l:?}");
+        assert!((0.0..3.5).contains(&quality("noise_sigma")), "{l:?}");
         assert!((0.8..1.2).contains(&quality("blockiness")), "{l:?}");
         let sharpness = quality("sharpness");
         assert!(

@@ -167,7 +167,7 @@ pub struct ImageOutcome {
     pub rival: Option<f32>,
     /// The detection's score over its threshold; None: not found.
     pub score_margin: Option<f32>,
-    /// The frame's measured noise, blocking and detail.
+    /// The frame's measured noise, JPEG blocking and sharpness.
     pub quality: acch_core::FrameQuality,
 }
 
