@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{Guard, free_port};
+use common::{Guard, free_ports};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -27,7 +27,7 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
         "python3 with eclipse-zenoh==1.10.2 is required (pip install eclipse-zenoh==1.10.2; .ci/run installs it)"
     );
     let frames = 90;
-    let (sub_port, pipe_port) = (free_port(), free_port());
+    let [sub_port, pipe_port] = free_ports();
     let dir = tempfile::tempdir().unwrap();
     // The subscriber listens; the pipeline connects to it (so the subscriber
     // is up before the first seed).

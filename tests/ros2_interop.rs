@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{Guard, free_port};
+use common::{Guard, free_port, free_ports};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output};
@@ -396,7 +396,7 @@ fn the_arm_pose_comes_from_a_ros2_topic() {
     require_python();
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let (arm_port, port) = (free_port(), free_port());
+    let [arm_port, port] = free_ports();
     let _arm = Guard(
         Command::new("python3")
             .arg(script("publish_arm.py"))

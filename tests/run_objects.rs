@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{acch, free_port, ok, zenoh_subscriber};
+use common::{acch, free_ports, ok, zenoh_subscriber};
 use serde_json::Value;
 
 fn rows(path: &std::path::Path) -> Vec<Value> {
@@ -23,7 +23,7 @@ fn rows(path: &std::path::Path) -> Vec<Value> {
 fn each_object_is_published_on_its_own_key_with_its_own_results() {
     let frames = 40u64;
     let dir = tempfile::tempdir().unwrap();
-    let (p_fruitbox, p_can, p_run) = (free_port(), free_port(), free_port());
+    let [p_fruitbox, p_can, p_run] = free_ports();
     let (_s1, mut fruitbox_report) = zenoh_subscriber("fruitbox", p_fruitbox, frames);
     let (_s2, mut can_report) = zenoh_subscriber("can", p_can, frames);
     let config = dir.path().join("p.toml");

@@ -12,11 +12,16 @@ use std::time::{Duration, Instant};
 
 /// A TCP port on loopback that nothing listens on now (zenoh's).
 pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    free_ports::<1>()[0]
+}
+
+/// `N` distinct such ports: each is held until all are picked, since a port
+/// just let go may be handed out again (two sessions of one test then
+/// listened on the same port: "Address already in use").
+pub fn free_ports<const N: usize>() -> [u16; N] {
+    let held: [std::net::TcpListener; N] =
+        std::array::from_fn(|_| std::net::TcpListener::bind("127.0.0.1:0").unwrap());
+    held.map(|l| l.local_addr().unwrap().port())
 }
 
 /// Stops the launcher on drop, as a user's Ctrl-C would (its children stop
