@@ -123,6 +123,13 @@ impl QualityMeter {
     }
 }
 
+/// The frame's rows, then its columns, as (pixels along the line, lines,
+/// stride between a line's pixels, stride between lines) of a `w` x `h`
+/// buffer.
+fn rows_then_columns(w: usize, h: usize) -> [(usize, usize, usize, usize); 2] {
+    [(w, h, 1, w), (h, w, w, 1)]
+}
+
 /// [`FrameQuality::blockiness`] of `grey`, `w` x `h`, over its rows and
 /// columns (1, chance, when too few steps stand out to tell).
 fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
@@ -130,7 +137,7 @@ fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
     // (a step into pixel i is on the boundary when i is a multiple of 8):
     // every place alike, so content does not favour the boundary.
     let mut by_place = [0u64; JPEG_BLOCK];
-    for (len, lines, stride, line_step) in [(w, h, 1, w), (h, w, w, 1)] {
+    for (len, lines, stride, line_step) in rows_then_columns(w, h) {
         for line in 0..lines {
             let at = |i: usize| grey[line * line_step + i * stride];
             let step = |i: usize| (at(i) - at(i - 1)).abs();
@@ -155,8 +162,7 @@ fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
 /// [`FrameQuality::sharpness`]).
 fn sharpness(grey: &[f32], w: usize, h: usize) -> f32 {
     let (mut sum, mut n) = (0f64, 0u64);
-    // Along x (stride 1) over rows, then along y (stride w) over columns.
-    for (len, lines, stride, line_step) in [(w, h, 1, w), (h, w, w, 1)] {
+    for (len, lines, stride, line_step) in rows_then_columns(w, h) {
         if len < 2 * EDGE_REACH + 3 {
             continue;
         }
