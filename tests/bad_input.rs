@@ -144,6 +144,31 @@ fn nan_and_negative_command_line_values_name_the_option() {
             &["run", "--smoothing", "gaussian"][..],
             "unknown smoothing 'gaussian'",
         ),
+        // The set chosen per frame: one object, both databases named.
+        (
+            &["run", "--smoothing", "auto", "--objects", "fruitbox,can"][..],
+            "auto is for one object",
+        ),
+        (
+            &["run", "--smoothing", "auto", "--db", "sharp.acchdb"][..],
+            "smoothed_db",
+        ),
+        (
+            &[
+                "train",
+                "--object",
+                "can",
+                "--smoothing",
+                "auto",
+                "--out",
+                "x.acchdb",
+            ][..],
+            "--smoothing auto chooses between two databases",
+        ),
+        (
+            &["eval", "--protocol", "table1", "--smoothing", "auto"][..],
+            "--smoothing auto",
+        ),
         // Refused before any database is trained.
         (
             &[

@@ -72,10 +72,23 @@ fn smoothed_views_and_frames_hold_a_blurred_camera_where_raw_pixels_fail() {
     );
 }
 
-/// `acch run ARGS`: the view database it names, and its summary.
+/// `acch run --in-process ARGS`: the view database it names, and its
+/// summary.
 fn run_naming_database(args: &[&str], dir: &Path) -> (PathBuf, serde_json::Value) {
+    let mut all = vec!["--in-process"];
+    all.extend_from_slice(args);
+    let (db, _, summary) = run_naming_databases(&all, dir);
+    (db, summary)
+}
+
+/// `acch run ARGS` over 30 frames: the view database it names, the
+/// smoothed one (`--smoothing auto`), and its summary.
+fn run_naming_databases(
+    args: &[&str],
+    dir: &Path,
+) -> (PathBuf, Option<PathBuf>, serde_json::Value) {
     let json = dir.join("summary.json");
-    let mut all = vec!["run", "--in-process", "--frames", "30", "--fps", "0"];
+    let mut all = vec!["run", "--frames", "30", "--fps", "0"];
     all.extend_from_slice(args);
     all.extend(["--json", json.to_str().unwrap()]);
     let out = acch(&all, dir);
@@ -85,8 +98,15 @@ fn run_naming_database(args: &[&str], dir: &Path) -> (PathBuf, serde_json::Value
         .lines()
         .find_map(|l| l.strip_prefix("acch run: view database "))
         .unwrap_or_else(|| panic!("the run names no database: {err}"));
+    let smoothed = err.lines().find_map(|l| {
+        l.strip_prefix("acch run: smoothed view database for noisy or compressed frames ")
+    });
     let summary = std::fs::read_to_string(&json).unwrap();
-    (db.into(), serde_json::from_str(&summary).unwrap())
+    (
+        db.into(),
+        smoothed.map(PathBuf::from),
+        serde_json::from_str(&summary).unwrap(),
+    )
 }
 
 #[test]
@@ -131,4 +151,45 @@ fn a_run_for_a_noisy_camera_uses_the_smoothing_imaging_aware_database() {
     .unwrap();
     let (configured, _) = run_naming_database(&["--config", cfg], dir.path());
     assert_eq!(configured, robust);
+}
+
+#[test]
+fn a_run_that_chooses_per_frame_sends_a_noisy_camera_through_the_smoothed_databases() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("p.toml");
+    let zenoh = format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port());
+    let count = |summary: &serde_json::Value, key: &str| {
+        summary[key]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{key}: {summary}"))
+    };
+    // A clean camera, in one process: both databases named, every frame
+    // through the sharp one.
+    std::fs::write(&config, &zenoh).unwrap();
+    let cfg = config.to_str().unwrap();
+    let args = ["--config", cfg, "--smoothing", "auto"];
+    let mut in_process = vec!["--in-process"];
+    in_process.extend(args);
+    let (sharp, smoothed, summary) = run_naming_databases(&in_process, dir.path());
+    let smoothed = smoothed.expect("the run names its smoothed database");
+    let load = |p: &Path| acch_core::ViewDatabase::load(p).unwrap();
+    assert_eq!(load(&sharp).palette.smoothing(), Smoothing::Off);
+    assert_eq!(load(&smoothed).palette.smoothing(), Smoothing::Binomial);
+    let name = smoothed.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(name.ends_with("-imaging-smoothed.acchdb"), "{name}");
+    assert_eq!(count(&summary, "results"), 30, "{summary}");
+    assert_eq!(count(&summary, "smoothed"), 0, "{summary}");
+    assert!(count(&summary, "accepted") >= 24, "{summary}");
+    assert_eq!(count(&summary, "accepted_wrong"), 0, "{summary}");
+    // A noisy camera, in the stage processes: every frame through the
+    // smoothed databases, and estimated as well. Free-running, the
+    // processes may drop a frame the slower recognition has not taken.
+    std::fs::write(&config, format!("camera_noise_sigma = 5.0\n{zenoh}")).unwrap();
+    let (_, _, summary) = run_naming_databases(&args, dir.path());
+    let results = count(&summary, "results");
+    assert!(results >= 24, "{summary}");
+    assert_eq!(count(&summary, "smoothed"), results, "{summary}");
+    assert!(count(&summary, "accepted") * 5 >= results * 4, "{summary}");
+    assert_eq!(count(&summary, "accepted_wrong"), 0, "{summary}");
+    assert_eq!(count(&summary, "faulted"), 0, "{summary}");
 }

@@ -440,6 +440,7 @@ fn over_exposed_the_light_chosen_by_the_pose_holds_where_recognitions_choice_fai
     by_recognition
         .stages_mut()
         .recognition
+        .sharp_mut()
         .choose_light_by_recognition();
     let views = ViewSpec::Random { n: 8 }.views(acch_capture::DEFAULT_DISTANCE, 3004);
     let mut failed = [0usize; 2];
@@ -484,9 +485,17 @@ fn seen_from_above_under_another_exposure_a_small_object_is_found_relit() {
     const { assert!(acch_recognition::RELIT_SCORE_FRACTION < 0.7) };
     let (object, mut chains, renderer) =
         single_image_chains("generated-3005", Background::B, exposed(0.8), 3005);
-    chains[0].stages_mut().recognition.count_relit_from(0.7);
+    chains[0]
+        .stages_mut()
+        .recognition
+        .sharp_mut()
+        .count_relit_from(0.7);
     for chain in &mut chains {
-        chain.stages_mut().confidence.accept_rivals_to(1.0);
+        chain
+            .stages_mut()
+            .confidence
+            .sharp_mut()
+            .accept_rivals_to(1.0);
     }
     // [old bar, default bar]: (found, accepted, accepted wrong)
     let (views, tally) = tally_views(&object, &mut chains, &renderer, "grid:86.5:30", 3005);
@@ -517,7 +526,11 @@ fn a_far_view_matching_as_well_rejects_an_estimate_the_network_accepts() {
     };
     let (object, mut chains, renderer) =
         single_image_chains("generated-3004", Background::B, effects, 3004);
-    chains[0].stages_mut().confidence.accept_rivals_to(1.0);
+    chains[0]
+        .stages_mut()
+        .confidence
+        .sharp_mut()
+        .accept_rivals_to(1.0);
     // [every rival, default]: (found, accepted, accepted wrong)
     let (views, tally) = tally_views(&object, &mut chains, &renderer, "grid:86:15", 3004);
     eprintln!(

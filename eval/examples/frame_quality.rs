@@ -5,8 +5,9 @@
 //! tricolor and the duck at seeds 3 and 7: the largest noise and
 //! blockiness and the smallest sharpness, and how many frames a per-frame
 //! choice of the smoothed database would take
-//! (`docs/results/robust/quality/select.py`, bars chosen on the
-//! development seed), and the time a measure takes.
+//! ([`acch_core::FrameQuality::needs_smoothing`], bars chosen on the
+//! development seed), and the time a measure takes, whole and as
+//! recognition takes it for the choice.
 //!
 //! `cargo run --release -p acch-eval --example frame_quality -- DUCK.obj`
 
@@ -14,9 +15,6 @@ use acch_capture::{DEFAULT_DISTANCE, Object, TextureSet, ViewSpec};
 use acch_core::{FrameQuality, QualityMeter};
 use acch_eval::protocol;
 use std::sync::Arc;
-
-/// Noise (grey levels) and blockiness bars of the study.
-const BARS: (f32, f32) = (2.5, 1.5);
 
 /// Table 2's camera offset that takes the object out of view, pixels.
 const OUT_OF_VIEW_PX: f64 = 4000.0;
@@ -27,6 +25,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .ok_or("usage: frame_quality DUCK.obj")?;
     let mut meter = QualityMeter::new();
     let (mut measured, mut spent) = (0u32, std::time::Duration::ZERO);
+    // Recognition's measure for the choice: noise and blocking alone.
+    let mut spent_choosing = std::time::Duration::ZERO;
     println!("object seed table frames max_noise max_blockiness min_sharpness smoothed");
     for name in ["fruitbox", "can", "tricolor", "duck"] {
         let object = Arc::new(if name == "duck" {
@@ -66,13 +66,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         let q = meter.measure(r.image.as_raw(), w, h);
                         spent += start.elapsed();
                         measured += 1;
+                        let start = std::time::Instant::now();
+                        let choice = meter.noise_and_blocking(r.image.as_raw(), w, h);
+                        spent_choosing += start.elapsed();
+                        assert_eq!(choice.needs_smoothing(), q.needs_smoothing());
                         q
                     })
                     .collect();
-                let smoothed = q
-                    .iter()
-                    .filter(|q| q.noise_sigma > BARS.0 || q.blockiness > BARS.1)
-                    .count();
+                let smoothed = q.iter().filter(|q| q.needs_smoothing()).count();
                 println!(
                     "{name} {seed} {table} {} {:.3} {:.3} {:.3} {smoothed}",
                     q.len(),
@@ -89,6 +90,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "measuring a frame took {:.2} ms on average over {measured} frames (one thread)",
         spent.as_secs_f64() * 1e3 / f64::from(measured.max(1))
+    );
+    println!(
+        "its noise and blocking alone, recognition's choice (smoothing = \"auto\"): {:.2} ms",
+        spent_choosing.as_secs_f64() * 1e3 / f64::from(measured.max(1))
     );
     Ok(())
 }

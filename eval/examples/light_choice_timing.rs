@@ -42,6 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             chains[0]
                 .stages_mut()
                 .recognition
+                .sharp_mut()
                 .choose_light_by_recognition();
             for (i, v) in views.iter().enumerate() {
                 let scene = renderer.render(v, acch_capture::frame_seed(k, i));

@@ -335,10 +335,19 @@ pub fn chain_at(
     distance_m: f64,
     light_search: usize,
 ) -> Result<Chain, EvalError> {
-    Ok(Chain::build(
-        db,
-        &settings_at(db, distance_m, light_search),
-    )?)
+    chain_for_sets(db, None, distance_m, light_search)
+}
+
+/// [`chain_at`] for the sharp database `db` and, when given, the smoothed
+/// one, chosen per frame by recognition (`--smoothing auto`).
+pub fn chain_for_sets(
+    db: &ViewDatabase,
+    smoothed: Option<&ViewDatabase>,
+    distance_m: f64,
+    light_search: usize,
+) -> Result<Chain, EvalError> {
+    let settings = settings_at(db, distance_m, light_search);
+    Ok(Chain::build_for_sets(db, smoothed, &settings)?)
 }
 
 /// The settings every protocol builds `db`'s stages with: the default

@@ -157,7 +157,7 @@ fn next_move(
     if policy == Policy::Sweep || !estimated {
         return sweep;
     }
-    let est = chain.stages().pose.estimator();
+    let est = chain.stages().pose.last_used().estimator();
     let db = est.database();
     let top = est.top(HYPOTHESES);
     let best = top.first().map_or(0.0, |t| t.1);

@@ -14,6 +14,7 @@ use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewSpec,
 };
 use acch_core::ViewDatabase;
+use acch_pipeline::Hop;
 use acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH;
 use acch_pose::phi_error;
 use rayon::prelude::*;
@@ -116,6 +117,10 @@ pub struct RobustOptions {
     pub database: &'static str,
 }
 
+/// An object's sharp database and, with `--smoothing auto`, its smoothed
+/// one, chosen per frame.
+pub type Databases = (ViewDatabase, Option<ViewDatabase>);
+
 /// One row: a family at a level, over every background.
 #[derive(Clone, Debug, Serialize)]
 pub struct RobustRow {
@@ -169,6 +174,9 @@ pub struct ImageOutcome {
     pub score_margin: Option<f32>,
     /// The frame's measured noise, JPEG blocking and sharpness.
     pub quality: acch_core::FrameQuality,
+    /// The database set the chain ran the frame through (`--smoothing
+    /// auto` chooses; otherwise sharp).
+    pub set: acch_pipeline::wire::DatabaseSet,
 }
 
 /// The robust protocol's report.
@@ -258,7 +266,7 @@ fn perturbed(
 /// Runs the robust protocol for `object` on its default database `db`.
 pub fn robust(
     object: Arc<Object>,
-    db: &ViewDatabase,
+    (db, smoothed): (&ViewDatabase, Option<&ViewDatabase>),
     options: &RobustOptions,
 ) -> Result<RobustReport, EvalError> {
     let o = options;
@@ -329,7 +337,8 @@ pub fn robust(
         }
         for &search in searches {
             let distance_m = db.train_distance_m as f64 * distance;
-            let mut row = measure(db, &scenes, object.radius_m(), distance_m, search)?;
+            let sets = (db, smoothed);
+            let mut row = measure(sets, &scenes, object.radius_m(), distance_m, search)?;
             let (family, level) = condition.unwrap_or(("clean", 0.0));
             row.family = family.to_owned();
             row.level = level;
@@ -354,7 +363,7 @@ pub fn robust(
 /// The chain over `scenes`, in parallel (each image is searched afresh,
 /// so the order does not matter); the row's family is left to the caller.
 fn measure(
-    db: &ViewDatabase,
+    (db, smoothed): (&ViewDatabase, Option<&ViewDatabase>),
     scenes: &[Rendered],
     radius_m: f64,
     distance_m: f64,
@@ -366,7 +375,7 @@ fn measure(
         .map_init(
             || {
                 (
-                    protocol::chain_at(db, distance_m, light_search),
+                    protocol::chain_for_sets(db, smoothed, distance_m, light_search),
                     acch_core::QualityMeter::new(),
                 )
             },
@@ -404,6 +413,7 @@ fn measure(
                     rival,
                     score_margin: out.detection().done().map(|w| w.margin()),
                     quality,
+                    set: out.envelope().imaging.set,
                 })
             },
         )
@@ -524,7 +534,7 @@ impl PopulationRow {
 /// database (`database(object)`, trained on first use), and pools the rows.
 pub fn robust_population(
     population: &[Arc<Object>],
-    database: &dyn Fn(&Arc<Object>) -> Result<ViewDatabase, EvalError>,
+    database: &dyn Fn(&Arc<Object>) -> Result<Databases, EvalError>,
     options: &RobustOptions,
 ) -> Result<PopulationReport, EvalError> {
     if population.is_empty() {
@@ -535,8 +545,8 @@ pub fn robust_population(
     let mut per_object = Vec::with_capacity(population.len());
     for object in population {
         bar.set_message(format!("objects ({})", object.name()));
-        let db = database(object)?;
-        per_object.push(robust(object.clone(), &db, options)?);
+        let (db, smoothed) = database(object)?;
+        per_object.push(robust(object.clone(), (&db, smoothed.as_ref()), options)?);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -689,7 +699,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -711,6 +721,7 @@ impl RobustReport {
                     o.quality.noise_sigma,
                     o.quality.blockiness,
                     o.quality.sharpness,
+                    o.set.name(),
                 );
             }
         }
@@ -810,7 +821,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

@@ -294,7 +294,7 @@ pub fn sequence(
     let db = train(&object, config, o.confidence_scenes)?;
     let train_seconds = start.elapsed().as_secs_f64();
     let probe = protocol::chain(&db)?;
-    let conf_threshold = probe.stages().confidence.threshold().unwrap_or(0.0);
+    let conf_threshold = probe.stages().confidence.sharp().threshold().unwrap_or(0.0);
     let filter_config = *probe.stages().seeding.filter_config();
     let database_min_theta = probe.stages().seeding.lowest_theta_deg();
     drop(probe);

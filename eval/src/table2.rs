@@ -151,6 +151,12 @@ pub struct Table2Options {
     pub light_directions: usize,
 }
 
+/// The window scan's best score on the last frame `chain` processed.
+fn best_score(chain: &acch_pipeline::Chain) -> f32 {
+    let recognition = chain.stages().recognition.last_used();
+    recognition.detector().best_score()
+}
+
 /// Runs table 2 for `object`.
 pub fn table2(
     object: Arc<Object>,
@@ -194,7 +200,7 @@ pub fn table2(
     let k = Intrinsics::default();
     let (w, h) = (k.width, k.height);
     let mut chain = protocol::chain(&db)?;
-    let conf_threshold = chain.stages().confidence.threshold().unwrap_or(0.0);
+    let conf_threshold = chain.stages().confidence.sharp().threshold().unwrap_or(0.0);
     let known = StageSettings {
         width: w,
         height: h,
@@ -255,7 +261,7 @@ pub fn table2(
             );
             sequence += 1;
             false_detections += out.detection().done().is_some() as usize;
-            max_empty = max_empty.max(chain.stages().recognition.detector().best_score());
+            max_empty = max_empty.max(best_score(&chain));
 
             let out = chain.process(
                 &protocol::frame_of(scene, sequence, false, object.radius_m()),
@@ -273,7 +279,7 @@ pub fn table2(
             let ms = (rec_ns + seg_ns) as f64 / 1e6;
             ms_sum += ms;
             ms_max = ms_max.max(ms);
-            scores.push(chain.stages().recognition.detector().best_score());
+            scores.push(best_score(&chain));
 
             let truth_mask = scene.mask.as_raw();
             let indices = chain
@@ -305,7 +311,7 @@ pub fn table2(
                 sum_theta += dtheta;
                 estimated += 1;
                 if let Some(v) = out.rating().verdict() {
-                    let est = chain.stages().pose.estimator();
+                    let est = chain.stages().pose.last_used().estimator();
                     let alt = alt_model.rate(est.response(), est.slices(), est.database().views());
                     rated.push((v.confidence, alt, !failed));
                     if v.accepted {

@@ -237,7 +237,7 @@ pub fn unrated_chain(
         light_search,
     };
     let mut stages = Stages::new(db, &settings)?;
-    stages.confidence = Confidence::unrated(db);
+    stages.confidence = acch_pipeline::stages::BySet::sharp_only(Confidence::unrated(db));
     Ok(Chain::new(stages))
 }
 
@@ -295,7 +295,7 @@ pub fn confidence_samples(
                     let Some(e) = out.pose().done() else {
                         return Ok(None);
                     };
-                    let est = chain.stages().pose.estimator();
+                    let est = chain.stages().pose.last_used().estimator();
                     let (resp, slices, views) =
                         (est.response(), est.slices(), est.database().views());
                     Ok(Some(ConfidenceSample {

@@ -55,6 +55,17 @@ impl Chain {
         Ok(Self::new(Stages::new(db, settings)?))
     }
 
+    /// Every stage for the sharp database `sharp` and, when given, the
+    /// smoothed one `smoothed`, chosen per frame by recognition
+    /// ([`crate::stages::BySet`]), chained.
+    pub fn build_for_sets(
+        sharp: &ViewDatabase,
+        smoothed: Option<&ViewDatabase>,
+        settings: &StageSettings,
+    ) -> Result<Self, BuildError> {
+        Ok(Self::new(Stages::for_sets(sharp, smoothed, settings)?))
+    }
+
     /// The stages.
     pub fn stages(&self) -> &Stages {
         &self.stages
@@ -107,7 +118,9 @@ impl Chain {
         rgb: &[u8],
         quantise: impl FnOnce(&mut [u8]),
     ) -> Recognised {
-        let s = &mut self.stages.recognition;
+        // Several objects' chains share a joint palette of their sharp
+        // databases: they do not choose a set per frame.
+        let s = self.stages.recognition.sharp_mut();
         quantise(&mut self.buffers[0][..s.pixels()]);
         s.indices_written();
         self.recognise(frame, rgb)
@@ -169,7 +182,8 @@ impl Chain {
     /// The last frame's palette indices and region counts.
     pub fn last_recognition(&self) -> Option<RecognitionPayload<'_>> {
         let (r, _, _) = self.last_headers()?;
-        RecognitionPayload::read(r, self.stages.segmentation.layout(), &self.buffers[0]).ok()
+        let layout = self.stages.segmentation.last_used().layout();
+        RecognitionPayload::read(r, layout, &self.buffers[0]).ok()
     }
 
     /// The last frame's mask and indices over its region, if one was grown.
@@ -181,7 +195,14 @@ impl Chain {
     /// The last frame's response, if an estimate was made.
     pub fn last_response(&self) -> Option<ResponsePayload<'_>> {
         let (_, _, p) = self.last_headers()?;
-        let views = self.stages.pose.estimator().database().views().len();
+        let views = self
+            .stages
+            .pose
+            .last_used()
+            .estimator()
+            .database()
+            .views()
+            .len();
         ResponsePayload::read(p, views, &self.buffers[2])
             .ok()
             .flatten()

@@ -56,10 +56,18 @@ pub struct PipelineConfig {
     /// database files, which are used as they are.
     pub light_directions: usize,
     /// The cached databases smooth views and frames before quantisation:
-    /// `off` (the paper's raw pixels) or `binomial` (5x5, sigma 1 px; a
-    /// noisy, compressed or blurred camera, docs/accuracy.md). Not for
-    /// `db` or database files.
+    /// `off` (the paper's raw pixels), `binomial` (5x5, sigma 1 px; a
+    /// noisy, compressed or blurred camera, docs/accuracy.md) or `auto`:
+    /// recognition measures each frame's noise and JPEG blocking and runs
+    /// a noisy or compressed one through the smoothed databases with the
+    /// confidence trained for such a camera (`smoothed_db`), a clean one
+    /// through the sharp ones (`db`). Not for database files otherwise;
+    /// `auto` not with several objects.
     pub smoothing: String,
+    /// With `smoothing = "auto"`: the smoothed set's database, trained
+    /// from `db`'s object (`acch train --smoothing binomial
+    /// --confidence-imaging`); the launcher fills in the cached one.
+    pub smoothed_db: Option<PathBuf>,
     /// The cached databases' confidence networks are trained on scenes
     /// under other light and a worse camera and read the match value
     /// (`acch train --confidence-imaging`). Not for `db` or database files.
@@ -119,6 +127,9 @@ pub struct PipelineConfig {
     /// The simulated scene's light: its colour temperature, kelvin, for a
     /// camera white-balanced for the training light's 5000 K.
     pub camera_colour_temp_k: f64,
+    /// The simulated camera's sensor noise, standard deviation in grey
+    /// levels (0: none; a cheap camera in dim light shows 3-6). One object.
+    pub camera_noise_sigma: f64,
     /// Lights (exposures, colour temperatures) recognition tries in a frame
     /// whose object is weak or lost under the light in use, going on in
     /// the next frame where this one stopped (0, the default: the training
@@ -204,6 +215,15 @@ pub enum ConfigError {
     /// Its database could not be read.
     #[error("the view database (db = ...)")]
     Database(#[source] acch_core::DbError),
+    /// `smoothing = "auto"` names no smoothed database.
+    #[error(
+        "smoothing = \"auto\" needs the smoothed database (smoothed_db = ...; \
+         `acch train --smoothing binomial --confidence-imaging` of db's object)"
+    )]
+    NoSmoothedDatabase,
+    /// The smoothed database could not be read.
+    #[error("the smoothed view database (smoothed_db = ...)")]
+    SmoothedDatabase(#[source] acch_core::DbError),
     /// The simulated scene's object is unknown.
     #[error("object = {0}")]
     Object(#[source] acch_capture::CaptureError),
@@ -235,6 +255,7 @@ impl Default for PipelineConfig {
             cache_dir: None,
             light_directions: 1,
             smoothing: acch_core::Smoothing::Off.name().into(),
+            smoothed_db: None,
             confidence_imaging: false,
             source: "synthetic".into(),
             camera_info: None,
@@ -246,6 +267,7 @@ impl Default for PipelineConfig {
             camera_shutter_ms: 0.0,
             light_search_per_frame: 0,
             camera_exposure: 1.0,
+            camera_noise_sigma: 0.0,
             camera_colour_temp_k: acch_core::light::TRAINING_LIGHT_K as f64,
             background: "A".into(),
             elevation_deg: [lo, hi],
@@ -270,6 +292,53 @@ impl Default for PipelineConfig {
             stage_cpus: "auto".into(),
             first_frame: 0,
         }
+    }
+}
+
+/// A run's smoothing: one for every frame, or chosen per frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SmoothingChoice {
+    /// Every frame through databases of this smoothing.
+    Fixed(acch_core::Smoothing),
+    /// Recognition chooses per frame between the sharp databases and the
+    /// smoothed ones ([`crate::stages::BySet`]).
+    ByFrame,
+}
+
+impl Default for SmoothingChoice {
+    /// The paper's raw pixels, every frame.
+    fn default() -> Self {
+        SmoothingChoice::Fixed(acch_core::Smoothing::Off)
+    }
+}
+
+impl SmoothingChoice {
+    /// The smoothing of the sharp databases (off when chosen per frame).
+    pub fn fixed(self) -> acch_core::Smoothing {
+        match self {
+            SmoothingChoice::Fixed(s) => s,
+            SmoothingChoice::ByFrame => acch_core::Smoothing::Off,
+        }
+    }
+
+    /// Its name: `off`, `binomial` or `auto`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SmoothingChoice::Fixed(s) => s.name(),
+            SmoothingChoice::ByFrame => "auto",
+        }
+    }
+}
+
+impl std::str::FromStr for SmoothingChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s.eq_ignore_ascii_case("auto") {
+            return Ok(SmoothingChoice::ByFrame);
+        }
+        s.parse()
+            .map(SmoothingChoice::Fixed)
+            .map_err(|_| format!("unknown smoothing '{s}' (expected off, binomial or auto)"))
     }
 }
 
@@ -314,8 +383,13 @@ impl PipelineConfig {
 
     /// `smoothing` parsed (off if it names none: [`PipelineConfig::validate`]
     /// refuses such a configuration first).
-    pub fn smoothing(&self) -> acch_core::Smoothing {
+    pub fn smoothing_choice(&self) -> SmoothingChoice {
         self.smoothing.parse().unwrap_or_default()
+    }
+
+    /// The smoothing of the (sharp) databases `db` and `object_dbs`.
+    pub fn smoothing(&self) -> acch_core::Smoothing {
+        self.smoothing_choice().fixed()
     }
 
     /// Checks every value a process would otherwise trip over later: NaN or
@@ -347,8 +421,40 @@ impl PipelineConfig {
                 ));
             }
         }
-        if self.smoothing.parse::<acch_core::Smoothing>().is_err() {
-            return Err(bad("smoothing", &self.smoothing, "must be off or binomial"));
+        match self.smoothing.parse::<SmoothingChoice>() {
+            Err(_) => {
+                return Err(bad(
+                    "smoothing",
+                    &self.smoothing,
+                    "must be off, binomial or auto",
+                ));
+            }
+            Ok(SmoothingChoice::ByFrame) if !self.objects.is_empty() => {
+                return Err(bad(
+                    "smoothing",
+                    &self.smoothing,
+                    "auto is for one object: several objects share a palette of their sharp \
+                     databases",
+                ));
+            }
+            Ok(SmoothingChoice::ByFrame) if self.db.is_some() && self.smoothed_db.is_none() => {
+                return Err(bad(
+                    "smoothed_db",
+                    &"(unset)",
+                    "must name the smoothed set's database when db names the sharp one and \
+                     smoothing = \"auto\" (acch train --smoothing binomial --confidence-imaging of \
+                     db's object; acch run --smoothed-db)",
+                ));
+            }
+            Ok(SmoothingChoice::ByFrame) if self.light_directions > 1 => {
+                return Err(bad(
+                    "smoothing",
+                    &self.smoothing,
+                    "auto is not with light_directions above 1: its smoothed databases' \
+                     confidence is trained for a worse camera under the training light's direction",
+                ));
+            }
+            Ok(_) => {}
         }
         if !(1..=64).contains(&self.light_directions) {
             return Err(bad(
@@ -410,6 +516,14 @@ impl PipelineConfig {
                 "camera_exposure",
                 &self.camera_exposure,
                 "must be a positive number (1: the training light)",
+            ));
+        }
+        if !(self.camera_noise_sigma.is_finite() && (0.0..=64.0).contains(&self.camera_noise_sigma))
+        {
+            return Err(bad(
+                "camera_noise_sigma",
+                &self.camera_noise_sigma,
+                "must be 0..=64 grey levels",
             ));
         }
         if !(self.camera_colour_temp_k.is_finite()
@@ -732,6 +846,21 @@ impl PipelineConfig {
         ViewDatabase::load(path).map_err(ConfigError::Database)
     }
 
+    /// Reads the smoothed set's database of a run with `smoothing =
+    /// "auto"`; `None` for a run that does not choose.
+    pub fn smoothed_database(&self) -> Result<Option<ViewDatabase>, ConfigError> {
+        if self.smoothing_choice() != SmoothingChoice::ByFrame {
+            return Ok(None);
+        }
+        let path = self
+            .smoothed_db
+            .as_ref()
+            .ok_or(ConfigError::NoSmoothedDatabase)?;
+        ViewDatabase::load(path)
+            .map(Some)
+            .map_err(ConfigError::SmoothedDatabase)
+    }
+
     /// The source this configuration reads.
     pub fn source_spec(&self) -> Result<SourceSpec, ConfigError> {
         let s = self.source.as_str();
@@ -789,6 +918,7 @@ impl PipelineConfig {
                 self.camera_exposure as f32,
                 self.camera_colour_temp_k as f32,
             ),
+            noise_sigma: self.camera_noise_sigma as f32,
         }))
     }
 
@@ -943,6 +1073,12 @@ mod tests {
             ("camera_colour_temp_k = 100.0", "camera_colour_temp_k"),
             ("roll_search_deg = 200.0", "roll_search_deg"),
             ("smoothing = \"gaussian\"", "smoothing"),
+            ("camera_noise_sigma = -1.0", "camera_noise_sigma"),
+            (
+                "smoothing = \"auto\"\nobjects = [\"fruitbox\", \"can\"]",
+                "smoothing",
+            ),
+            ("smoothing = \"auto\"\nlight_directions = 8", "smoothing"),
             ("transport = \"udp\"", "transport"),
             ("replay = \"fast\"", "replay"),
             ("source = \"camera\"", "source"),

@@ -73,6 +73,7 @@ impl FrameHeader {
                 },
                 trail: Trail::default(),
                 reads: Default::default(),
+                imaging: Default::default(),
             },
             stride: width * 3,
             format: PixelFormat::Rgb8,

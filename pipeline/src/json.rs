@@ -83,6 +83,18 @@ pub struct ArmJson {
     pub rotation_xyzw: [f64; 4],
 }
 
+/// The frame's imaging as recognition measured it, in a result of a run
+/// that chooses the database set per frame (`smoothing = "auto"`).
+#[derive(Serialize, Debug, Clone)]
+pub struct ImagingJson {
+    /// Noise, grey levels.
+    pub noise_sigma: f32,
+    /// JPEG blocking (about 1 uncompressed).
+    pub blockiness: f32,
+    /// The databases the frame went through: sharp or smoothed.
+    pub set: &'static str,
+}
+
 /// The seeding stage's pose fused over time, in a result.
 #[derive(Serialize, Debug, Clone)]
 pub struct FusedJson<'a> {
@@ -162,6 +174,9 @@ pub struct ResultJson<'a> {
     pub truth: Option<TruthJson>,
     /// The arm's camera pose the frame came with, when known.
     pub arm: Option<ArmJson>,
+    /// The frame's measured imaging and the databases chosen by it, when
+    /// the run chooses.
+    pub imaging: Option<ImagingJson>,
     /// Per stage [received_ns, published_ns], CLOCK_MONOTONIC.
     pub trail: [(&'static str, [u64; 2]); STAGES],
 }
@@ -262,6 +277,12 @@ impl<'a> ResultJson<'a> {
                     translation_unit: TRANSLATION_UNIT,
                     rotation_xyzw,
                 }
+            }),
+            // Zero: not measured (blockiness is about 1 when it is).
+            imaging: (e.imaging.blockiness > 0.0).then(|| ImagingJson {
+                noise_sigma: e.imaging.noise_sigma,
+                blockiness: e.imaging.blockiness,
+                set: e.imaging.set.name(),
             }),
             trail: StageId::ALL.map(|s| {
                 let t = e.trail.of(s);

@@ -381,9 +381,10 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let db = cfg.database()?;
     cfg.warn_on_untrained_roll_search(&db);
     let settings = cfg.settings(&db)?;
-    let mut chain = Chain::build(&db, &settings)?;
+    let smoothed = cfg.smoothed_database()?;
+    let mut chain = Chain::build_for_sets(&db, smoothed.as_ref(), &settings)?;
     let views = crate::observers::view_angles(&db);
-    drop(db);
+    drop((db, smoothed));
     let spec = cfg.source_spec()?;
     let mut source = Source::open(&spec, (settings.width, settings.height), 0)?;
     let mut observers = LocalObservers::open(cfg, opts, &views)?;
@@ -640,8 +641,9 @@ pub fn run_processes(
     // One clear error here rather than one from every stage process.
     let db = cfg.database()?;
     cfg.warn_on_untrained_roll_search(&db);
-    crate::stages::Stages::new(&db, &cfg.settings(&db)?)?;
-    drop(db);
+    let smoothed = cfg.smoothed_database()?;
+    crate::stages::Stages::for_sets(&db, smoothed.as_ref(), &cfg.settings(&db)?)?;
+    drop((db, smoothed));
     let stale = remove_stale_resources();
     if stale > 0 {
         tracing::info!("removed the stale resources of {stale} dead iceoryx2 nodes");
@@ -911,17 +913,19 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
         return crate::node::run_capture(&cfg);
     }
     let db = cfg.database()?;
+    let smoothed = cfg.smoothed_database()?;
     let settings = cfg.settings(&db)?;
     use crate::node::run_stage;
-    use crate::stages::{Confidence, Pose, Recognition, Seeding, Segmentation};
+    use crate::stages::{Confidence, Pose, Recognition, Seeding, Segmentation, by_set};
     fn none<T>(_: &T) -> Result<(), ObserveError> {
         Ok(())
     }
+    let sets = (&db, smoothed.as_ref(), &settings);
     match id {
-        StageId::Recognition => run_stage(&cfg, Recognition::new(&db, &settings)?, none),
-        StageId::Segmentation => run_stage(&cfg, Segmentation::new(&db, &settings)?, none),
-        StageId::Pose => run_stage(&cfg, Pose::new(&db, &settings)?, none),
-        StageId::Confidence => run_stage(&cfg, Confidence::new(&db, &settings)?, none),
+        StageId::Recognition => run_stage(&cfg, by_set(sets, Recognition::new)?, none),
+        StageId::Segmentation => run_stage(&cfg, by_set(sets, Segmentation::new)?, none),
+        StageId::Pose => run_stage(&cfg, by_set(sets, Pose::new)?, none),
+        StageId::Confidence => run_stage(&cfg, by_set(sets, Confidence::new)?, none),
         StageId::Seeding => {
             let stage = Seeding::new(&db, &settings)?;
             let mut zenoh = ZenohSink::open(&cfg)?;

@@ -118,6 +118,8 @@ pub struct SyntheticCamera {
     /// the camera moves along the trajectory meanwhile and the frame is
     /// blurred along that motion; 0 = an instant, no motion blur.
     pub shutter_s: f64,
+    /// Sensor noise, standard deviation in grey levels (0: none).
+    pub noise_sigma: f32,
 }
 
 impl SyntheticCamera {
@@ -510,6 +512,7 @@ impl Source {
                         effects: acch_capture::Effects {
                             exposure: c.light.0,
                             colour_temp_k: c.light.1,
+                            noise_sigma: c.noise_sigma,
                             ..Default::default()
                         },
                         textures: c.textures,
@@ -860,6 +863,7 @@ mod tests {
             roll_deg: 0.0,
             light: (1.0, acch_core::light::TRAINING_LIGHT_K),
             shutter_s,
+            noise_sigma: 0.0,
         };
         let mut source = Source::open(&SourceSpec::Synthetic(camera), (320, 240), index)
             .expect("the synthetic camera opens");

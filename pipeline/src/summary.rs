@@ -3,7 +3,7 @@
 //! carried, and latency from every frame's timing trail.
 
 use crate::stages::{Rating, Seeded};
-use crate::wire::{Hop, Outcome, StageId};
+use crate::wire::{DatabaseSet, Hop, Outcome, StageId};
 use acch_confidence::Tolerance;
 use serde::Serialize;
 
@@ -92,6 +92,9 @@ pub struct Outcomes {
     pub accepted_wrong: u64,
     /// Their sequence numbers.
     pub accepted_wrong_sequences: Vec<u64>,
+    /// Frames recognition ran through the smoothed databases, measuring
+    /// them noisy or compressed (`smoothing = "auto"`).
+    pub smoothed: u64,
 }
 
 /// Whether any stage of `m` failed on it.
@@ -114,6 +117,7 @@ impl Outcomes {
         };
         let (mut phi, mut theta, mut with_truth) = (0.0, 0.0, 0u64);
         for m in results {
+            o.smoothed += (m.envelope().imaging.set == DatabaseSet::Smoothed) as u64;
             o.found += m.detection().done().is_some() as u64;
             o.faulted += faulted(m) as u64;
             let Some(p) = m.pose().done() else { continue };

@@ -448,7 +448,50 @@ pub struct FrameReads {
     pub in_place: u32,
 }
 
-/// What every header carries: the frame, its trail and its reads.
+/// Which of a stage's two database sets a frame goes through.
+#[repr(u32)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DatabaseSet {
+    /// The sharp databases (the default; the only set of a run that does
+    /// not choose).
+    #[default]
+    Sharp = 0,
+    /// The databases that smooth views and frames, with the confidence
+    /// trained for a worse camera: for a noisy or compressed frame.
+    Smoothed = 1,
+}
+
+// SAFETY: a fieldless repr(u32) enum: four bytes, no pointers.
+unsafe impl ZeroCopySend for DatabaseSet {}
+
+impl DatabaseSet {
+    /// Its name in results: `sharp` or `smoothed`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DatabaseSet::Sharp => "sharp",
+            DatabaseSet::Smoothed => "smoothed",
+        }
+    }
+}
+
+/// What recognition measured of the frame's camera and the database set it
+/// chose for the frame by it (a run with `smoothing = "auto"`; otherwise
+/// nothing measured and the sharp set).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct FrameImaging {
+    /// Noise, grey levels ([`acch_core::FrameQuality::noise_sigma`]; 0: not
+    /// measured).
+    pub noise_sigma: f32,
+    /// JPEG blocking ([`acch_core::FrameQuality::blockiness`]; 0: not
+    /// measured).
+    pub blockiness: f32,
+    /// The set the later stages ran the frame through.
+    pub set: DatabaseSet,
+}
+
+/// What every header carries: the frame, its trail, its reads and its
+/// imaging.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct Envelope {
@@ -458,6 +501,9 @@ pub struct Envelope {
     pub trail: Trail,
     /// How its pixels were read.
     pub reads: FrameReads,
+    /// The camera's imaging as recognition measured it, and the database
+    /// set chosen by it.
+    pub imaging: FrameImaging,
 }
 
 /// A hop's header: every header carries the [`Envelope`].

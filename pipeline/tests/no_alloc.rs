@@ -3,8 +3,9 @@
 //! indices, recognition's region counts written and read back, region
 //! growing, the pose stage at a scale that changes every frame, the
 //! confidence stage, seeding with fusion, the step both executors take,
-//! the JSON written for zenoh, a palette that smooths the frame first, and
-//! the stage process's own loop over iceoryx2. A counting global allocator
+//! the JSON written for zenoh, a palette that smooths the frame first, a
+//! chain measuring each frame to choose its database set, and the stage
+//! process's own loop over iceoryx2. A counting global allocator
 //! watches the threads that run them; each check starts with a positive
 //! control that proves it counts.
 //!
@@ -17,8 +18,8 @@ use acch_capture::{Background, Object, Renderer, SceneConfig, ViewPose, ViewSpec
 use acch_core::ViewDatabase;
 use acch_pipeline::json::JsonWriter;
 use acch_pipeline::stages::{Confidence, Recognised, Stages};
-use acch_pipeline::wire::{ArmPose, Intrinsics, Maybe};
-use acch_pipeline::{Chain, FrameHeader, PipelineConfig, StageId, StageSettings};
+use acch_pipeline::wire::{ArmPose, DatabaseSet, Intrinsics, Maybe};
+use acch_pipeline::{Chain, FrameHeader, Hop, PipelineConfig, StageId, StageSettings};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::Arc;
@@ -215,7 +216,7 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
     assert!(out.seeding.fused.get().is_some());
     // ... and a stage built unrated allocates nothing either.
     let mut stages = Stages::new(&db, &settings).unwrap();
-    stages.confidence = Confidence::unrated(&db);
+    stages.confidence = acch_pipeline::stages::BySet::sharp_only(Confidence::unrated(&db));
     let mut unrated = Chain::new(stages);
     pass(&mut unrated, &mut json);
     assert_eq!(
@@ -224,6 +225,38 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         }),
         0
     );
+    // ... and a chain choosing its database set per frame, measuring each
+    // frame, with every other frame noisy enough for the smoothed set.
+    let mut smoothed = db.clone();
+    smoothed.palette = smoothed
+        .palette
+        .with_smoothing(acch_core::Smoothing::Binomial);
+    let mut choosing = Chain::build_for_sets(&db, Some(&smoothed), &settings).unwrap();
+    let mixed: Vec<(FrameHeader, Vec<u8>)> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, (f, rgb))| {
+            let mut rgb = rgb.clone();
+            if i % 2 == 1 {
+                for (k, v) in rgb.iter_mut().enumerate() {
+                    let n = (k * 7919 % 13) as i16 - 6;
+                    *v = (*v as i16 + n).clamp(0, 255) as u8;
+                }
+            }
+            (*f, rgb)
+        })
+        .collect();
+    let mut sets = Vec::new();
+    for (f, rgb) in &mixed {
+        sets.push(choosing.process(f, rgb).envelope().imaging.set);
+    }
+    assert!(sets.contains(&DatabaseSet::Smoothed) && sets.contains(&DatabaseSet::Sharp));
+    let after = allocations(|| {
+        for (f, rgb) in &mixed {
+            std::hint::black_box(json.write("fruitbox", &choosing.process(f, rgb)).unwrap());
+        }
+    });
+    assert_eq!(after, 0, "allocations choosing over {} frames", mixed.len());
 }
 
 #[test]

@@ -2,7 +2,8 @@
 //! options.
 
 use acch_capture::{Object, UpAxis};
-use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling, Smoothing};
+use acch_core::{ColourSpace, HistogramKind, HistogramParams, OffsetSampling};
+use acch_pipeline::config::SmoothingChoice;
 use acch_pose::train::TrainConfig;
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -142,9 +143,12 @@ pub struct HistogramArgs {
     /// noisy camera matches sharp training views; costs precision among
     /// several known objects, docs/accuracy.md "A blurred camera"). In
     /// eval's robust and multi protocols: databases trained so on first
-    /// use and cached apart from the default ones.
-    #[arg(long, default_value = "off", value_parser = parse_smoothing)]
-    pub smoothing: Smoothing,
+    /// use and cached apart from the default ones. eval's robust protocol
+    /// also takes `auto`: each frame through the sharp or the smoothed
+    /// databases (with the confidence for a worse camera), as its measured
+    /// noise and JPEG blocking say (`acch run --smoothing auto`).
+    #[arg(long, default_value = "off", value_name = "off|binomial|auto")]
+    pub smoothing: SmoothingChoice,
 }
 
 impl HistogramArgs {
@@ -172,13 +176,9 @@ impl HistogramArgs {
             reject_quantile: Some(self.reject_quantile),
             params,
             seed: self.palette_seed,
-            smoothing: self.smoothing,
+            smoothing: self.smoothing.fixed(),
         })
     }
-}
-
-pub(crate) fn parse_smoothing(s: &str) -> Result<Smoothing, String> {
-    s.parse()
 }
 
 fn parse_kind(s: &str) -> Result<HistogramKind, String> {

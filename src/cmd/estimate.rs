@@ -160,7 +160,7 @@ fn write_debug(
             .with_context(|| format!("writing {}", path.display()))
     };
     // Heat map: each window position's score at its centre cell.
-    let heat = chain.stages().recognition.detector().heat_map();
+    let heat = chain.stages().recognition.last_used().detector().heat_map();
     let max = heat.scores.iter().copied().fold(f32::EPSILON, f32::max);
     let cell = heat.cell_px as i64;
     let half = heat.window_cells as i64 / 2;

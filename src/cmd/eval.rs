@@ -6,6 +6,7 @@ use acch_capture::UpAxis;
 use acch_eval::bop::{self, BOP_UNIT_M, ModelFrame};
 use acch_eval::dataset::{self, DatasetOptions, Segment};
 use acch_eval::{multi, robust, roll, sequence, table1, table2};
+use acch_pipeline::config::SmoothingChoice;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -222,6 +223,11 @@ pub fn run(args: EvalArgs) -> Result<()> {
     if let Some(spec) = &args.objects {
         return run_population(&args, spec);
     }
+    if args.histogram.smoothing == SmoothingChoice::ByFrame
+        && !matches!(args.protocol, Protocol::Robust)
+    {
+        bail!("--smoothing auto (the databases chosen per frame) is measured by --protocol robust");
+    }
     let object = args.object.load()?;
     let config = args.histogram.train_config()?;
     match args.protocol {
@@ -296,8 +302,8 @@ pub fn run(args: EvalArgs) -> Result<()> {
         ),
         Protocol::Robust => {
             let options = robust_options(&args, 20);
-            let (db, _) = robust_database(&args, &object)?;
-            let report = robust::robust(object, &db, &options)?;
+            let (db, smoothed) = robust_databases(&args, &object)?;
+            let report = robust::robust(object, (&db, smoothed.as_ref()), &options)?;
             report.print();
             if let Some(path) = &args.json {
                 report.write_json(path)?;
@@ -325,7 +331,9 @@ fn robust_options(args: &EvalArgs, default_n: usize) -> robust::RobustOptions {
             "imaging-aware"
         } else if args.light_directions > 1 {
             "light-tolerant"
-        } else if args.histogram.smoothing != acch_core::Smoothing::Off {
+        } else if args.histogram.smoothing == SmoothingChoice::ByFrame {
+            "chosen per frame"
+        } else if args.histogram.smoothing.fixed() != acch_core::Smoothing::Off {
             "smoothing"
         } else {
             "default"
@@ -333,19 +341,31 @@ fn robust_options(args: &EvalArgs, default_n: usize) -> robust::RobustOptions {
     }
 }
 
-/// The database the robust protocol measures for `object`: the default,
-/// the imaging-aware or the light-tolerant one (cached).
-fn robust_database(
+/// The databases the robust protocol measures for `object`: the default,
+/// the imaging-aware, the smoothing or the light-tolerant one (cached)
+/// and, with `--smoothing auto`, the smoothed one with the confidence for
+/// a worse camera, chosen per frame.
+fn robust_databases(
     args: &EvalArgs,
     object: &Arc<acch_capture::Object>,
-) -> Result<(acch_core::ViewDatabase, std::path::PathBuf), acch_eval::EvalError> {
+) -> Result<robust::Databases, acch_eval::EvalError> {
     let recipe = acch_eval::train::Recipe {
         imaging: args.confidence_imaging,
         light_directions: args.light_directions as usize,
-        smoothing: args.histogram.smoothing,
+        smoothing: args.histogram.smoothing.fixed(),
         ..Default::default()
     };
-    acch_eval::train::cached_recipe_database(object, None, recipe)
+    let (db, _) = acch_eval::train::cached_recipe_database(object, None, recipe)?;
+    if args.histogram.smoothing != SmoothingChoice::ByFrame {
+        return Ok((db, None));
+    }
+    let smoothed = acch_eval::train::Recipe {
+        smoothing: acch_core::Smoothing::Binomial,
+        imaging: true,
+        ..recipe
+    };
+    let (smoothed, _) = acch_eval::train::cached_recipe_database(object, None, smoothed)?;
+    Ok((db, Some(smoothed)))
 }
 
 /// `acch eval --protocol robust --objects LIST`.
@@ -358,7 +378,7 @@ fn run_population(args: &EvalArgs, spec: &str) -> Result<()> {
         _ => bail!("--objects is measured by --protocol robust and multi only"),
     }
     let options = robust_options(args, 4);
-    let database = |o: &Arc<acch_capture::Object>| robust_database(args, o).map(|(db, _)| db);
+    let database = |o: &Arc<acch_capture::Object>| robust_databases(args, o);
     let report = robust::robust_population(&objects, &database, &options)?;
     report.print();
     if let Some(path) = &args.json {
@@ -388,6 +408,11 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
     };
     // Refused before any database is trained.
     options.check(objects.len())?;
+    if args.histogram.smoothing == SmoothingChoice::ByFrame {
+        bail!(
+            "--smoothing auto is for one object: several objects share a palette of their sharp databases"
+        );
+    }
     let databases = objects
         .iter()
         .map(|o| {
@@ -396,7 +421,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
                     .roll_search_deg
                     .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG),
                 light_directions: args.light_directions as usize,
-                smoothing: args.histogram.smoothing,
+                smoothing: args.histogram.smoothing.fixed(),
                 imaging: args.confidence_imaging,
             };
             acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)

@@ -6,7 +6,7 @@
 
 use super::common::ObjectArgs;
 use acch_capture::Background;
-use acch_pipeline::config::ObjectEntry;
+use acch_pipeline::config::{ObjectEntry, SmoothingChoice};
 use acch_pipeline::{PipelineConfig, RunOptions, RunSummary, StageId};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -23,6 +23,12 @@ pub struct RunArgs {
     /// and cached (see --cache-dir).
     #[arg(long, value_name = "FILE.acchdb")]
     pub(crate) db: Option<PathBuf>,
+    /// With --smoothing auto and --db: the smoothed database of the same
+    /// object (`acch train --smoothing binomial --confidence-imaging`).
+    /// Without --db both databases are the cached ones, trained on first
+    /// use.
+    #[arg(long, value_name = "FILE.acchdb", requires = "db")]
+    pub(crate) smoothed_db: Option<PathBuf>,
     /// Several known objects at once, comma-separated: built-in names,
     /// generated-N, random:N (N generated objects of the population of
     /// --seed), mesh files and view databases (.acchdb). Every object is
@@ -48,14 +54,18 @@ pub struct RunArgs {
     #[arg(long, value_name = "K")]
     pub(crate) light_directions: Option<usize>,
     /// Use (and on first use train) the databases that smooth views and
-    /// frames before quantisation: `off`, or `binomial` for a noisy,
+    /// frames before quantisation: `off`; `binomial` for a noisy,
     /// compressed or blurred camera, with --confidence-imaging the
     /// configuration measured for such a camera (docs/accuracy.md, "A
     /// noisy, compressed or blurred camera"; it costs a little accuracy on
-    /// clean frames and precision among several objects). Default off, or
-    /// the configuration's.
-    #[arg(long, value_name = "off|binomial", value_parser = super::common::parse_smoothing)]
-    pub(crate) smoothing: Option<acch_core::Smoothing>,
+    /// clean frames and precision among several objects); or `auto`:
+    /// recognition measures each frame's noise and JPEG blocking and runs
+    /// a noisy or compressed frame through the smoothed databases with the
+    /// confidence for such a camera, a clean one through the sharp ones
+    /// (both trained on first use; one object). Default off, or the
+    /// configuration's.
+    #[arg(long, value_name = "off|binomial|auto")]
+    pub(crate) smoothing: Option<acch_pipeline::config::SmoothingChoice>,
     /// Use (and on first use train) the databases whose confidence network
     /// was trained on scenes under other light and a worse camera and reads
     /// the absolute match value, so a weak match is rejected (`acch train
@@ -208,6 +218,7 @@ impl RunArgs {
         }
         if self.db.is_some() {
             cfg.db.clone_from(&self.db);
+            cfg.smoothed_db.clone_from(&self.smoothed_db);
         }
         if self.camera_info.is_some() {
             cfg.camera_info.clone_from(&self.camera_info);
@@ -272,8 +283,18 @@ impl RunArgs {
                 imaging: cfg.confidence_imaging,
                 ..Default::default()
             };
-            let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, recipe)?;
+            let (_, path) =
+                acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?;
             cfg.db = Some(path);
+            if cfg.smoothing_choice() == SmoothingChoice::ByFrame {
+                let smoothed = acch_eval::train::Recipe {
+                    smoothing: acch_core::Smoothing::Binomial,
+                    imaging: true,
+                    ..recipe
+                };
+                let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, smoothed)?;
+                cfg.smoothed_db = Some(path);
+            }
         }
         Ok(cfg)
     }
@@ -368,6 +389,16 @@ pub fn run(args: RunArgs) -> Result<()> {
     let single = cfg.db.iter().filter(|_| cfg.objects.is_empty());
     for db in single.chain(&cfg.object_dbs) {
         eprintln!("acch run: view database {}", db.display());
+    }
+    if let Some(db) = cfg
+        .smoothed_db
+        .as_ref()
+        .filter(|_| cfg.smoothing_choice() == SmoothingChoice::ByFrame)
+    {
+        eprintln!(
+            "acch run: smoothed view database for noisy or compressed frames {}",
+            db.display()
+        );
     }
     // The stage processes carry one object: several run in one process.
     let summary = if args.in_process || !cfg.objects.is_empty() {

@@ -118,6 +118,13 @@ impl From<ConfidenceInput> for train::ConfidenceInput {
 
 /// Runs `acch train`.
 pub fn run(args: TrainArgs) -> Result<()> {
+    if args.histogram.smoothing == acch_pipeline::config::SmoothingChoice::ByFrame {
+        bail!(
+            "--smoothing auto chooses between two databases per frame (acch run, acch eval \
+             --protocol robust): train each, --smoothing off and --smoothing binomial \
+             --confidence-imaging"
+        );
+    }
     let config = args.histogram.train_config()?;
     // Checked before the long training, not after it.
     let confidence_roll_deg = args.confidence_roll_deg.unwrap_or(args.roll_search_deg);

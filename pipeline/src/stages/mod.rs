@@ -3,12 +3,14 @@
 //! -> pose -> confidence -> seeding; every header carries the one before
 //! it, so the final [`Seeded`] holds every stage's part of a frame.
 
+pub mod by_set;
 pub mod confidence;
 pub mod pose;
 pub mod recognition;
 pub mod seeding;
 pub mod segmentation;
 
+pub use by_set::{BySet, Chosen};
 pub use confidence::{Confidence, Evidence, Rated, Rating, Verdict};
 pub use pose::{Pose, PoseEstimate, Posed, ResponsePayload};
 pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
@@ -95,31 +97,96 @@ pub enum BuildError {
     /// The fusion filter's configuration is invalid.
     #[error(transparent)]
     Fusion(#[from] acch_seeding::FusionError),
+    /// The smoothed set's database cannot stand in for the sharp one on a
+    /// noisy frame.
+    #[error(
+        "the smoothed database of '{object}' {why}: train it with `acch train --smoothing \
+         binomial --confidence-imaging` from the sharp database's object and views"
+    )]
+    SmoothedSet {
+        /// The sharp database's object.
+        object: String,
+        /// What does not fit.
+        why: String,
+    },
 }
 
-/// The five stages of one pipeline, built from one database.
+/// The five stages of one pipeline, built from one database or, in a run
+/// that chooses per frame, from a sharp and a smoothed one ([`BySet`]).
 pub struct Stages {
-    /// Quantise + window scan.
-    pub recognition: Recognition,
+    /// Quantise + window scan; measures and chooses the set.
+    pub recognition: BySet<Recognition>,
     /// Region growing.
-    pub segmentation: Segmentation,
+    pub segmentation: BySet<Segmentation>,
     /// ACCH pose.
-    pub pose: Pose,
+    pub pose: BySet<Pose>,
     /// Confidence network.
-    pub confidence: Confidence,
-    /// Seed and fusion.
+    pub confidence: BySet<Confidence>,
+    /// Seed and fusion, one for both sets: its fusion spans their frames.
     pub seeding: Seeding,
 }
 
 impl Stages {
     /// Every stage for `db` with `settings`.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
+        Self::for_sets(db, None, settings)
+    }
+
+    /// Every stage for the sharp database `sharp` and, when given, the
+    /// smoothed one `smoothed`, chosen per frame, with `settings`.
+    pub fn for_sets(
+        sharp: &ViewDatabase,
+        smoothed: Option<&ViewDatabase>,
+        settings: &StageSettings,
+    ) -> Result<Self, BuildError> {
         Ok(Stages {
-            recognition: Recognition::new(db, settings)?,
-            segmentation: Segmentation::new(db, settings)?,
-            pose: Pose::new(db, settings)?,
-            confidence: Confidence::new(db, settings)?,
-            seeding: Seeding::new(db, settings)?,
+            recognition: by_set((sharp, smoothed, settings), Recognition::new)?,
+            segmentation: by_set((sharp, smoothed, settings), Segmentation::new)?,
+            pose: by_set((sharp, smoothed, settings), Pose::new)?,
+            confidence: by_set((sharp, smoothed, settings), Confidence::new)?,
+            seeding: Seeding::new(sharp, settings)?,
         })
+    }
+}
+
+/// Stage `S` built by `new` for the sharp database and, when given, the
+/// smoothed one (checked to stand in for it), with the settings.
+pub fn by_set<S: crate::Stage>(
+    (sharp, smoothed, settings): (&ViewDatabase, Option<&ViewDatabase>, &StageSettings),
+    new: fn(&ViewDatabase, &StageSettings) -> Result<S, BuildError>,
+) -> Result<BySet<S>, BuildError> {
+    let Some(smoothed) = smoothed else {
+        return Ok(BySet::sharp_only(new(sharp, settings)?));
+    };
+    check_smoothed(sharp, smoothed)?;
+    Ok(BySet::both(new(sharp, settings)?, new(smoothed, settings)?))
+}
+
+/// Whether `smoothed` can stand in for `sharp` on a noisy frame: the same
+/// object seen from the same views at the same distance, its palette
+/// smoothing frames.
+fn check_smoothed(sharp: &ViewDatabase, smoothed: &ViewDatabase) -> Result<(), BuildError> {
+    let views = |db: &ViewDatabase| -> Vec<(f32, f32)> {
+        db.views()
+            .iter()
+            .map(|v| (v.theta_deg, v.phi_deg))
+            .collect()
+    };
+    let why = if smoothed.object != sharp.object {
+        Some(format!("is of another object ('{}')", smoothed.object))
+    } else if smoothed.palette.smoothing() == acch_core::Smoothing::Off {
+        Some("does not smooth frames".to_owned())
+    } else if smoothed.train_distance_m != sharp.train_distance_m || views(smoothed) != views(sharp)
+    {
+        Some("was trained from other views or another distance".to_owned())
+    } else {
+        None
+    };
+    match why {
+        Some(why) => Err(BuildError::SmoothedSet {
+            object: sharp.object.clone(),
+            why,
+        }),
+        None => Ok(()),
     }
 }

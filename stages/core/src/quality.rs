@@ -8,7 +8,8 @@
 //! object's match, can say which of the two a frame needs: the robust
 //! protocol records it for every image (`--errors`), and choosing the
 //! database by it is measured there (docs/accuracy.md, "Which database a
-//! frame needs: its measured quality"), not yet built into the pipeline.
+//! frame needs: its measured quality"), and recognition makes that choice
+//! for a run with `smoothing = "auto"` ([`FrameQuality::needs_smoothing`]).
 
 /// Side of the square blocks whose noise is estimated one by one, pixels.
 const BLOCK: usize = 16;
@@ -55,10 +56,35 @@ pub struct FrameQuality {
     pub sharpness: f32,
 }
 
+/// Noise, grey levels, above which a frame needs the smoothed databases.
+/// Chosen on the development seed of the robust protocol (noise 2 measures
+/// 2.2, clean frames at most 1.6 on every table frame).
+pub const NOISY_SIGMA: f32 = 2.5;
+
+/// Blockiness above which a frame needs the smoothed databases (JPEG 90
+/// measures 1.5 in the median, clean frames at most 1.45 on every table
+/// frame). Chosen with [`NOISY_SIGMA`].
+pub const BLOCKY: f32 = 1.5;
+
+impl FrameQuality {
+    /// Whether the frame is noisy or blocky enough that the databases that
+    /// smooth views and frames match it better than the sharp ones
+    /// (docs/accuracy.md, "Which database a frame needs"). Sharpness has no
+    /// say: a frame with nothing sharp in view measures as a blurred one.
+    pub fn needs_smoothing(&self) -> bool {
+        self.noise_sigma > NOISY_SIGMA || self.blockiness > BLOCKY
+    }
+}
+
 /// Measures frames, reusing its buffers (no allocation per frame once warm).
 #[derive(Debug, Default)]
 pub struct QualityMeter {
+    /// Each 16x16 block's mean mask response.
     blocks: Vec<f32>,
+    /// Each block's summed mask response.
+    sums: Vec<u32>,
+    /// One row's mask response per channel byte.
+    response: Vec<u32>,
     grey: Vec<f32>,
 }
 
@@ -71,6 +97,16 @@ impl QualityMeter {
     /// The quality of the packed RGB frame `rgb`, `width` x `height`.
     /// Frames smaller than 3x3 measure as default (zero).
     pub fn measure(&mut self, rgb: &[u8], width: u32, height: u32) -> FrameQuality {
+        let mut q = self.noise_and_blocking(rgb, width, height);
+        if width >= 3 && height >= 3 {
+            q.sharpness = sharpness(&self.grey, width as usize, height as usize);
+        }
+        q
+    }
+
+    /// [`measure`](Self::measure) without the sharpness (NaN), which
+    /// [`FrameQuality::needs_smoothing`] does not read.
+    pub fn noise_and_blocking(&mut self, rgb: &[u8], width: u32, height: u32) -> FrameQuality {
         let (w, h) = (width as usize, height as usize);
         assert_eq!(
             rgb.len(),
@@ -87,40 +123,57 @@ impl QualityMeter {
         );
         let grey = &self.grey;
         let (bw, bh) = ((w - 2).div_ceil(BLOCK), (h - 2).div_ceil(BLOCK));
-        self.blocks.clear();
-        self.blocks.resize(2 * bw * bh, 0.0);
-        let (sums, counts) = self.blocks.split_at_mut(bw * bh);
+        // Pixel x in 1..w-1 of row y belongs to block ((y-1)/16, (x-1)/16);
+        // each block's mask responses are summed in integers, exactly.
+        let mut sums = std::mem::take(&mut self.sums);
+        sums.clear();
+        sums.resize(bw * bh, 0);
+        self.response.resize(3 * w, 0);
         for y in 1..h - 1 {
             let row = |k: usize| &rgb[3 * k * w..3 * (k + 1) * w];
             let (above, here, below) = (row(y - 1), row(y), row(y + 1));
-            let block_row = (y - 1) / BLOCK * bw;
-            for x in 1..w - 1 {
-                // [1 -2 1; -2 4 -2; 1 -2 1] per channel: zero on any plane.
-                let mut m = 0i32;
-                for i in 3 * x..3 * x + 3 {
-                    let v = |r: &[u8], i: usize| i32::from(r[i]);
-                    let corners =
-                        v(above, i - 3) + v(above, i + 3) + v(below, i - 3) + v(below, i + 3);
-                    let sides = v(here, i - 3) + v(here, i + 3) + v(above, i) + v(below, i);
-                    m += (corners - 2 * sides + 4 * v(here, i)).abs();
-                }
-                let b = block_row + (x - 1) / BLOCK;
-                sums[b] += m as f32 / 3.0;
-                counts[b] += 1.0;
+            // [1 -2 1; -2 4 -2; 1 -2 1] per channel byte: zero on any
+            // plane. One pass over the row's bytes, the neighbours 3 bytes
+            // (a pixel) apart, so it vectorises.
+            let n = 3 * w - 6;
+            let response = &mut self.response[..n];
+            let (a0, a1, a2) = (at(above, 0, n), at(above, 3, n), at(above, 6, n));
+            let (h0, h1, h2) = (at(here, 0, n), at(here, 3, n), at(here, 6, n));
+            let (b0, b1, b2) = (at(below, 0, n), at(below, 3, n), at(below, 6, n));
+            for i in 0..n {
+                let v = |r: &[u8]| i32::from(r[i]);
+                let corners = v(a0) + v(a2) + v(b0) + v(b2);
+                let sides = v(h0) + v(h2) + v(a1) + v(b1);
+                response[i] = (corners - 2 * sides + 4 * v(h1)).unsigned_abs();
+            }
+            let block_row = &mut sums[(y - 1) / BLOCK * bw..][..bw];
+            for (sum, chunk) in block_row.iter_mut().zip(response.chunks(3 * BLOCK)) {
+                *sum += chunk.iter().sum::<u32>();
             }
         }
-        for (s, n) in sums.iter_mut().zip(counts.iter()) {
-            *s /= n.max(1.0);
-        }
-        let flat = ((sums.len() as f32 * FLAT_SHARE).ceil() as usize).clamp(1, sums.len());
-        sums.select_nth_unstable_by(flat - 1, f32::total_cmp);
-        let flat_mean = sums[..flat].iter().sum::<f32>() / flat as f32;
+        self.blocks.clear();
+        self.blocks.extend(sums.iter().enumerate().map(|(b, &sum)| {
+            let (bx, by) = (b % bw, b / bw);
+            let pixels = |k: usize, len: usize| (len - k * BLOCK).min(BLOCK);
+            let n = pixels(bx, w - 2) * pixels(by, h - 2);
+            sum as f32 / 3.0 / n.max(1) as f32
+        }));
+        self.sums = sums;
+        let means = &mut self.blocks;
+        let flat = ((means.len() as f32 * FLAT_SHARE).ceil() as usize).clamp(1, means.len());
+        means.select_nth_unstable_by(flat - 1, f32::total_cmp);
+        let flat_mean = means[..flat].iter().sum::<f32>() / flat as f32;
         FrameQuality {
             noise_sigma: flat_mean * (std::f32::consts::FRAC_PI_2).sqrt() / 6.0,
             blockiness: blockiness(grey, w, h),
-            sharpness: sharpness(grey, w, h),
+            sharpness: f32::NAN,
         }
     }
+}
+
+/// `n` bytes of `r` from `i`.
+fn at(r: &[u8], i: usize, n: usize) -> &[u8] {
+    &r[i..i + n]
 }
 
 /// The frame's rows, then its columns, as (pixels along the line, lines,
@@ -137,17 +190,29 @@ fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
     // (a step into pixel i is on the boundary when i is a multiple of 8):
     // every place alike, so content does not favour the boundary.
     let mut by_place = [0u64; JPEG_BLOCK];
-    for (len, lines, stride, line_step) in rows_then_columns(w, h) {
-        for line in 0..lines {
-            let at = |i: usize| grey[line * line_step + i * stride];
-            let step = |i: usize| (at(i) - at(i - 1)).abs();
-            for i in 2..len.saturating_sub(1) {
-                let s = step(i);
-                if s > 1.0 && s > step(i - 1) && s > step(i + 1) {
-                    by_place[i % JPEG_BLOCK] += 1;
-                }
-            }
+    let stands_out = |before: f32, s: f32, after: f32| s > 1.0 && s > before && s > after;
+    // Along each row.
+    for row in grey.chunks_exact(w) {
+        let step = |i: usize| (row[i] - row[i - 1]).abs();
+        for i in 2..w.saturating_sub(1) {
+            by_place[i % JPEG_BLOCK] += stands_out(step(i - 1), step(i), step(i + 1)) as u64;
         }
+    }
+    // Down each column, the columns side by side: four rows at a time
+    // rather than a column at a time across the whole frame.
+    for i in 2..h.saturating_sub(1) {
+        let row = |k: usize| &grey[k * w..(k + 1) * w];
+        let (r0, r1, r2, r3) = (row(i - 2), row(i - 1), row(i), row(i + 1));
+        let mut count = 0u64;
+        for x in 0..w {
+            let (before, s, after) = (
+                (r1[x] - r0[x]).abs(),
+                (r2[x] - r1[x]).abs(),
+                (r3[x] - r2[x]).abs(),
+            );
+            count += stands_out(before, s, after) as u64;
+        }
+        by_place[i % JPEG_BLOCK] += count;
     }
     let total: u64 = by_place.iter().sum();
     if total < MIN_BLOCK_STEPS {
@@ -335,5 +400,88 @@ mod tests {
         let mut meter = QualityMeter::new();
         let q = meter.measure(&[0; 12], 2, 2);
         assert_eq!((q.noise_sigma, q.blockiness), (0.0, 0.0));
+    }
+
+    /// The noise and blockiness by their definitions, one pixel (one step)
+    /// at a time in floats, columns walked down the frame.
+    fn by_definition(rgb: &[u8], w: usize, h: usize) -> (f32, f32) {
+        let (bw, bh) = ((w - 2).div_ceil(BLOCK), (h - 2).div_ceil(BLOCK));
+        let (mut sums, mut counts) = (vec![0f64; bw * bh], vec![0f64; bw * bh]);
+        let v = |x: usize, y: usize, c: usize| f64::from(rgb[3 * (y * w + x) + c]);
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let mut m = 0.0;
+                for c in 0..3 {
+                    let corners = v(x - 1, y - 1, c)
+                        + v(x + 1, y - 1, c)
+                        + v(x - 1, y + 1, c)
+                        + v(x + 1, y + 1, c);
+                    let sides = v(x - 1, y, c) + v(x + 1, y, c) + v(x, y - 1, c) + v(x, y + 1, c);
+                    m += (corners - 2.0 * sides + 4.0 * v(x, y, c)).abs();
+                }
+                let b = (y - 1) / BLOCK * bw + (x - 1) / BLOCK;
+                sums[b] += m / 3.0;
+                counts[b] += 1.0;
+            }
+        }
+        let mut means: Vec<f64> = sums.iter().zip(&counts).map(|(s, n)| s / n).collect();
+        means.sort_by(f64::total_cmp);
+        let flat = ((means.len() as f32 * FLAT_SHARE).ceil() as usize).clamp(1, means.len());
+        let noise = means[..flat].iter().sum::<f64>() / flat as f64
+            * std::f64::consts::FRAC_PI_2.sqrt()
+            / 6.0;
+        let grey: Vec<f32> = rgb
+            .chunks_exact(3)
+            .map(|p| (p[0] as f32 + p[1] as f32 + p[2] as f32) / 3.0)
+            .collect();
+        let mut by_place = [0u64; JPEG_BLOCK];
+        for (len, lines, stride, line_step) in rows_then_columns(w, h) {
+            for line in 0..lines {
+                let at = |i: usize| grey[line * line_step + i * stride];
+                let step = |i: usize| (at(i) - at(i - 1)).abs();
+                for i in 2..len - 1 {
+                    let s = step(i);
+                    if s > 1.0 && s > step(i - 1) && s > step(i + 1) {
+                        by_place[i % JPEG_BLOCK] += 1;
+                    }
+                }
+            }
+        }
+        let total: u64 = by_place.iter().sum();
+        let blockiness = if total < MIN_BLOCK_STEPS {
+            1.0
+        } else {
+            by_place[0] as f32 * JPEG_BLOCK as f32 / total as f32
+        };
+        (noise as f32, blockiness)
+    }
+
+    #[test]
+    fn the_fast_measure_is_the_definition() {
+        let mut meter = QualityMeter::new();
+        let (rgb, w, _) = scene();
+        // Sizes that are not whole blocks, noise and JPEG-like blocks.
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for (sigma, (w2, h2)) in [(0.0, (160, 120)), (3.0, (150, 107)), (6.0, (37, 29))] {
+            let crop: Vec<u8> = (0..h2)
+                .flat_map(|y| rgb[3 * y * w as usize..][..3 * w2].to_vec())
+                .collect();
+            let mut frame = noisy(&crop, sigma, rng.random());
+            if sigma == 3.0 {
+                for (i, p) in frame.iter_mut().enumerate() {
+                    let x = (i / 3) % w2;
+                    *p = p.saturating_add(if x % 8 == 0 { 9 } else { 0 });
+                }
+            }
+            let q = meter.noise_and_blocking(&frame, w2 as u32, h2 as u32);
+            let (noise, blockiness) = by_definition(&frame, w2, h2);
+            assert!((q.noise_sigma - noise).abs() < 1e-4, "{q:?} {noise}");
+            assert_eq!(q.blockiness, blockiness, "{w2}x{h2}");
+            assert!(q.sharpness.is_nan());
+            if sigma == 3.0 {
+                // Enough steps to tell, most on the grid's columns.
+                assert!(q.blockiness > 1.5, "{q:?}");
+            }
+        }
     }
 }

@@ -187,7 +187,9 @@ pub const RESULT_SCHEMA: &str = r#"{
       "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}},
     "arm": {"type": "object", "description": "null when the arm reported no pose", "properties": {
       "translation": {"type": "array", "items": {"type": "number"}}, "translation_unit": {"type": "string"},
-      "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}}
+      "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}},
+    "imaging": {"type": "object", "description": "the frame's noise and JPEG blocking as recognition measured them, and the database set they chose (sharp or smoothed); null unless the run chooses (smoothing auto)", "properties": {
+      "noise_sigma": {"type": "number"}, "blockiness": {"type": "number"}, "set": {"type": "string"}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
 }"#;

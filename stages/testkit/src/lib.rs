@@ -24,6 +24,20 @@ pub struct Trained {
 /// If training fails: a fixture's grid and renderer are the caller's
 /// constants, so a failure is a bug to show at once.
 pub fn train_on_views(object: &str, renderer: &Renderer, grid: &ViewSpec) -> Trained {
+    train_on_views_with(object, renderer, grid, &TrainConfig::default())
+}
+
+/// [`train_on_views`] under training configuration `config` (a smoothing
+/// palette, say).
+///
+/// # Panics
+/// As [`train_on_views`].
+pub fn train_on_views_with(
+    object: &str,
+    renderer: &Renderer,
+    grid: &ViewSpec,
+    config: &TrainConfig,
+) -> Trained {
     let rendered: Vec<_> = grid
         .views(DEFAULT_DISTANCE, 0)
         .iter()
@@ -46,7 +60,7 @@ pub fn train_on_views(object: &str, renderer: &Renderer, grid: &ViewSpec) -> Tra
         object,
         (DEFAULT_DISTANCE * renderer.config().object.radius_m()) as f32,
         &labelled,
-        &TrainConfig::default(),
+        config,
     )
     .expect("training the view database");
     let model = RecognitionModel::train(&labelled, &db.palette, &RecognitionParams::default())

@@ -1,0 +1,152 @@
+//! A run that chooses the database set per frame (`smoothing = "auto"`):
+//! recognition measures each frame and sends a noisy one through the
+//! smoothed databases and a clean one through the sharp ones, every later
+//! stage follows the choice the header carries, what a stage was not built
+//! for is a counted fault, and a database that cannot stand in for the
+//! sharp one is refused.
+
+use acch_capture::{
+    Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
+};
+use acch_core::{Smoothing, ViewDatabase};
+use acch_pipeline::stages::{BuildError, Stages};
+use acch_pipeline::wire::{DatabaseSet, Fault, Intrinsics};
+use acch_pipeline::{Chain, FrameHeader, Hop, StageSettings};
+use acch_pose::train::TrainConfig;
+use std::sync::Arc;
+
+fn database(object: &str, smoothing: Smoothing) -> ViewDatabase {
+    let object = Arc::new(Object::builtin(object).unwrap());
+    let plain = Renderer::new(SceneConfig::new(object.clone(), Background::default()), 0);
+    let grid = ViewSpec::Grid {
+        thetas_deg: vec![50.0, 70.0, 90.0],
+        phi_step_deg: 30.0,
+    };
+    let config = TrainConfig {
+        smoothing,
+        ..TrainConfig::default()
+    };
+    let acch_testkit::Trained { mut db, model } =
+        acch_testkit::train_on_views_with(object.name(), &plain, &grid, &config);
+    db.sections
+        .insert(acch_recognition::SECTION.to_owned(), model.to_bytes());
+    db
+}
+
+fn settings() -> StageSettings {
+    StageSettings {
+        width: 640,
+        height: 480,
+        distance_m: Some(DEFAULT_DISTANCE * Object::builtin("fruitbox").unwrap().radius_m()),
+        // The fixtures have no confidence network: the sets are what is
+        // checked here, not the rating.
+        unrated: true,
+        roll_search_deg: 0.0,
+        light_search: 0,
+    }
+}
+
+/// A frame of fruitbox on background A seen from (70°, 30°), with sensor
+/// noise of `noise_sigma` grey levels.
+fn frame(noise_sigma: f32) -> (FrameHeader, Vec<u8>) {
+    let object = Arc::new(Object::builtin("fruitbox").unwrap());
+    let mut config = SceneConfig::new(object, Background::A);
+    config.effects.noise_sigma = noise_sigma;
+    let r =
+        Renderer::new(config, 1).render(&ViewPose::new(70.0, 30.0, DEFAULT_DISTANCE).unwrap(), 1);
+    let header = FrameHeader::rgb(0, 640, 480, Intrinsics::from(&r.truth.intrinsics));
+    (header, r.image.into_raw())
+}
+
+/// The match values of the last frame's response.
+fn response(chain: &Chain) -> Vec<f32> {
+    chain
+        .last_response()
+        .expect("the frame was estimated")
+        .values()
+        .collect()
+}
+
+#[test]
+fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the_sharp() {
+    let (sharp, smoothed) = (
+        database("fruitbox", Smoothing::Off),
+        database("fruitbox", Smoothing::Binomial),
+    );
+    let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
+    let mut sharp_only = Chain::build(&sharp, &settings()).unwrap();
+    let mut smoothed_only = Chain::build(&smoothed, &settings()).unwrap();
+    for (noise, want) in [(0.0, DatabaseSet::Sharp), (5.0, DatabaseSet::Smoothed)] {
+        let (header, rgb) = frame(noise);
+        let out = both.process(&header, &rgb);
+        let imaging = out.envelope().imaging;
+        assert_eq!(imaging.set, want, "noise {noise}: {imaging:?}");
+        // The measure is the frame's: near the noise added (a clean render
+        // measures below 1), blockiness about 1 (nothing compressed).
+        assert!(
+            (imaging.noise_sigma - noise.max(0.5)).abs() < 1.0,
+            "noise {noise}: {imaging:?}"
+        );
+        assert!((0.8..1.2).contains(&imaging.blockiness), "{imaging:?}");
+        // Every stage ran the chosen set's database: the same estimate and
+        // response as a chain of that database alone, and not the other's.
+        let (same, other) = match want {
+            DatabaseSet::Sharp => (&mut sharp_only, &mut smoothed_only),
+            DatabaseSet::Smoothed => (&mut smoothed_only, &mut sharp_only),
+        };
+        let alone = same.process(&header, &rgb);
+        assert_eq!(out.pose(), alone.pose(), "noise {noise}");
+        assert_eq!(out.region(), alone.region(), "noise {noise}");
+        assert_eq!(response(&both), response(same), "noise {noise}");
+        other.process(&header, &rgb);
+        assert_ne!(response(&both), response(other), "noise {noise}");
+        let pose = both.stages().pose.last_used();
+        let chosen = match want {
+            DatabaseSet::Sharp => both.stages().pose.sharp(),
+            DatabaseSet::Smoothed => both.stages().pose.smoothed().unwrap(),
+        };
+        assert!(std::ptr::eq(pose, chosen));
+    }
+    // A run that does not choose measures nothing and says sharp.
+    let (header, rgb) = frame(5.0);
+    let out = sharp_only.process(&header, &rgb);
+    assert_eq!(out.envelope().imaging, Default::default());
+}
+
+#[test]
+fn a_frame_for_a_set_a_stage_does_not_hold_is_a_counted_fault() {
+    let sharp = database("fruitbox", Smoothing::Off);
+    let mut chain = Chain::build(&sharp, &settings()).unwrap();
+    let (header, rgb) = frame(0.0);
+    let mut recognised = chain.recognise(&header, &rgb);
+    assert!(recognised.detection.done().is_some(), "fruitbox is in view");
+    recognised.envelope_mut().imaging.set = DatabaseSet::Smoothed;
+    let out = chain.finish(&recognised);
+    assert!(out.region().done().is_none());
+    assert_eq!(chain.counters()[1].faults_of(Fault::Header), 1);
+}
+
+#[test]
+fn a_smoothed_database_that_cannot_stand_in_for_the_sharp_one_is_refused() {
+    let sharp = database("fruitbox", Smoothing::Off);
+    let refused = |smoothed: &ViewDatabase, what: &str| match Stages::for_sets(
+        &sharp,
+        Some(smoothed),
+        &settings(),
+    ) {
+        Err(e @ BuildError::SmoothedSet { .. }) => {
+            let msg = e.to_string();
+            assert!(msg.contains(what), "{msg}");
+        }
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("accepted a smoothed database that {what}"),
+    };
+    refused(&sharp, "does not smooth frames");
+    refused(&database("can", Smoothing::Binomial), "another object");
+    let mut farther = database("fruitbox", Smoothing::Binomial);
+    farther.train_distance_m *= 2.0;
+    refused(&farther, "another distance");
+    // The same object, views and distance, smoothing: accepted.
+    let smoothed = database("fruitbox", Smoothing::Binomial);
+    assert!(Stages::for_sets(&sharp, Some(&smoothed), &settings()).is_ok());
+}
