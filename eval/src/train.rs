@@ -855,6 +855,18 @@ impl Default for Recipe {
 }
 
 impl Recipe {
+    /// The recipe of the smoothed set a run with `smoothing = "auto"` holds
+    /// beside this one: views and frames smoothed, the confidence trained
+    /// for a worse camera (docs/accuracy.md, "The database set chosen per
+    /// frame").
+    pub fn smoothed_set(self) -> Recipe {
+        Recipe {
+            smoothing: Smoothing::Binomial,
+            imaging: true,
+            ..self
+        }
+    }
+
     /// Refuses what cannot be trained, naming the option.
     fn check(&self) -> Result<(), EvalError> {
         let deg = self.roll_search_deg;

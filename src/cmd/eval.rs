@@ -359,12 +359,8 @@ fn robust_databases(
     if args.histogram.smoothing != SmoothingChoice::ByFrame {
         return Ok((db, None));
     }
-    let smoothed = acch_eval::train::Recipe {
-        smoothing: acch_core::Smoothing::Binomial,
-        imaging: true,
-        ..recipe
-    };
-    let (smoothed, _) = acch_eval::train::cached_recipe_database(object, None, smoothed)?;
+    let (smoothed, _) =
+        acch_eval::train::cached_recipe_database(object, None, recipe.smoothed_set())?;
     Ok((db, Some(smoothed)))
 }
 

@@ -287,11 +287,7 @@ impl RunArgs {
                 acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?;
             cfg.db = Some(path);
             if cfg.smoothing_choice() == SmoothingChoice::ByFrame {
-                let smoothed = acch_eval::train::Recipe {
-                    smoothing: acch_core::Smoothing::Binomial,
-                    imaging: true,
-                    ..recipe
-                };
+                let smoothed = recipe.smoothed_set();
                 let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, smoothed)?;
                 cfg.smoothed_db = Some(path);
             }
