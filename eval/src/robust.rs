@@ -177,6 +177,9 @@ pub struct ImageOutcome {
     /// The database set the chain ran the frame through (`--smoothing
     /// auto` chooses; otherwise sharp).
     pub set: acch_pipeline::wire::DatabaseSet,
+    /// Sharpness over the object's window as the chain measured it to
+    /// choose (`--smoothing auto`; 0: not measured).
+    pub object_sharpness: f32,
 }
 
 /// The robust protocol's report.
@@ -414,6 +417,7 @@ fn measure(
                     score_margin: out.detection().done().map(|w| w.margin()),
                     quality,
                     set: out.envelope().imaging.set,
+                    object_sharpness: out.envelope().imaging.object_sharpness,
                 })
             },
         )
@@ -699,7 +703,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3}",
                     self.object,
                     r.family,
                     r.level,
@@ -722,6 +726,7 @@ impl RobustReport {
                     o.quality.blockiness,
                     o.quality.sharpness,
                     o.set.name(),
+                    o.object_sharpness,
                 );
             }
         }
@@ -821,7 +826,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

@@ -58,10 +58,11 @@ pub struct PipelineConfig {
     /// The cached databases smooth views and frames before quantisation:
     /// `off` (the paper's raw pixels), `binomial` (5x5, sigma 1 px; a
     /// noisy, compressed or blurred camera, docs/accuracy.md) or `auto`:
-    /// recognition measures each frame's noise and JPEG blocking and runs
-    /// a noisy or compressed one through the smoothed databases with the
-    /// confidence trained for such a camera (`smoothed_db`), a clean one
-    /// through the sharp ones (`db`). Not for database files otherwise;
+    /// recognition measures each frame's noise and JPEG blocking and the
+    /// object's sharpness, and runs a noisy or compressed frame, a blurred
+    /// object or one the sharp databases do not find through the smoothed
+    /// databases with the confidence trained for such a camera
+    /// (`smoothed_db`), the rest through the sharp ones (`db`). Not for database files otherwise;
     /// `auto` not with several objects.
     pub smoothing: String,
     /// With `smoothing = "auto"`: the smoothed set's database, trained
@@ -130,6 +131,10 @@ pub struct PipelineConfig {
     /// The simulated camera's sensor noise, standard deviation in grey
     /// levels (0: none; a cheap camera in dim light shows 3-6). One object.
     pub camera_noise_sigma: f64,
+    /// The simulated camera's lens out of focus: a Gaussian blur of this
+    /// sigma, pixels (0: sharp; 2 blurs printed text past reading). One
+    /// object.
+    pub camera_blur_sigma: f64,
     /// Lights (exposures, colour temperatures) recognition tries in a frame
     /// whose object is weak or lost under the light in use, going on in
     /// the next frame where this one stopped (0, the default: the training
@@ -268,6 +273,7 @@ impl Default for PipelineConfig {
             light_search_per_frame: 0,
             camera_exposure: 1.0,
             camera_noise_sigma: 0.0,
+            camera_blur_sigma: 0.0,
             camera_colour_temp_k: acch_core::light::TRAINING_LIGHT_K as f64,
             background: "A".into(),
             elevation_deg: [lo, hi],
@@ -524,6 +530,13 @@ impl PipelineConfig {
                 "camera_noise_sigma",
                 &self.camera_noise_sigma,
                 "must be 0..=64 grey levels",
+            ));
+        }
+        if !(self.camera_blur_sigma.is_finite() && (0.0..=8.0).contains(&self.camera_blur_sigma)) {
+            return Err(bad(
+                "camera_blur_sigma",
+                &self.camera_blur_sigma,
+                "must be 0..=8 pixels",
             ));
         }
         if !(self.camera_colour_temp_k.is_finite()
@@ -919,6 +932,7 @@ impl PipelineConfig {
                 self.camera_colour_temp_k as f32,
             ),
             noise_sigma: self.camera_noise_sigma as f32,
+            blur_sigma: self.camera_blur_sigma as f32,
         }))
     }
 
@@ -1074,6 +1088,7 @@ mod tests {
             ("roll_search_deg = 200.0", "roll_search_deg"),
             ("smoothing = \"gaussian\"", "smoothing"),
             ("camera_noise_sigma = -1.0", "camera_noise_sigma"),
+            ("camera_blur_sigma = 9.0", "camera_blur_sigma"),
             (
                 "smoothing = \"auto\"\nobjects = [\"fruitbox\", \"can\"]",
                 "smoothing",

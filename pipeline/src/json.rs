@@ -91,6 +91,10 @@ pub struct ImagingJson {
     pub noise_sigma: f32,
     /// JPEG blocking (about 1 uncompressed).
     pub blockiness: f32,
+    /// Sharpness over the object's window (about 0.2 blurred by 2 px, 0.5
+    /// at a one-pixel edge); None: not measured (a noisy or blocky frame,
+    /// nothing found, no strong edge in the window).
+    pub object_sharpness: Option<f32>,
     /// The databases the frame went through: sharp or smoothed.
     pub set: &'static str,
 }
@@ -282,6 +286,8 @@ impl<'a> ResultJson<'a> {
             imaging: (e.imaging.blockiness > 0.0).then(|| ImagingJson {
                 noise_sigma: e.imaging.noise_sigma,
                 blockiness: e.imaging.blockiness,
+                object_sharpness: (e.imaging.object_sharpness > 0.0)
+                    .then_some(e.imaging.object_sharpness),
                 set: e.imaging.set.name(),
             }),
             trail: StageId::ALL.map(|s| {

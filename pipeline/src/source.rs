@@ -120,6 +120,9 @@ pub struct SyntheticCamera {
     pub shutter_s: f64,
     /// Sensor noise, standard deviation in grey levels (0: none).
     pub noise_sigma: f32,
+    /// A lens out of focus: a Gaussian blur of this sigma, pixels (0:
+    /// sharp).
+    pub blur_sigma: f32,
 }
 
 impl SyntheticCamera {
@@ -513,6 +516,7 @@ impl Source {
                             exposure: c.light.0,
                             colour_temp_k: c.light.1,
                             noise_sigma: c.noise_sigma,
+                            blur_sigma: c.blur_sigma,
                             ..Default::default()
                         },
                         textures: c.textures,
@@ -864,6 +868,7 @@ mod tests {
             light: (1.0, acch_core::light::TRAINING_LIGHT_K),
             shutter_s,
             noise_sigma: 0.0,
+            blur_sigma: 0.0,
         };
         let mut source = Source::open(&SourceSpec::Synthetic(camera), (320, 240), index)
             .expect("the synthetic camera opens");

@@ -46,6 +46,13 @@ pub trait Stage {
 
     /// The header it publishes for `input` with its `part`.
     fn output(input: &Self::Input, part: Self::Part) -> Self::Output;
+
+    /// Where in the frame its part found the object (recognition's
+    /// window), for a run that chooses its database set by how sharp the
+    /// object is ([`crate::stages::BySet`]); None: this stage finds none.
+    fn object_window(_part: &Self::Part) -> Option<crate::wire::PixelRect> {
+        None
+    }
 }
 
 /// What a stage counted over a run: where frames went and why.

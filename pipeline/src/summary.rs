@@ -92,8 +92,9 @@ pub struct Outcomes {
     pub accepted_wrong: u64,
     /// Their sequence numbers.
     pub accepted_wrong_sequences: Vec<u64>,
-    /// Frames recognition ran through the smoothed databases, measuring
-    /// them noisy or compressed (`smoothing = "auto"`).
+    /// Frames recognition ran through the smoothed databases: measured
+    /// noisy or compressed, the object blurred, or not found by the sharp
+    /// ones (`smoothing = "auto"`).
     pub smoothed: u64,
 }
 

@@ -457,7 +457,8 @@ pub enum DatabaseSet {
     #[default]
     Sharp = 0,
     /// The databases that smooth views and frames, with the confidence
-    /// trained for a worse camera: for a noisy or compressed frame.
+    /// trained for a worse camera: for a noisy or compressed frame, or a
+    /// blurred object.
     Smoothed = 1,
 }
 
@@ -474,9 +475,9 @@ impl DatabaseSet {
     }
 }
 
-/// What recognition measured of the frame's camera and the database set it
-/// chose for the frame by it (a run with `smoothing = "auto"`; otherwise
-/// nothing measured and the sharp set).
+/// What recognition measured of the frame's camera and of the object, and
+/// the database set it chose for the frame by them (a run with `smoothing =
+/// "auto"`; otherwise nothing measured and the sharp set).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct FrameImaging {
@@ -486,7 +487,14 @@ pub struct FrameImaging {
     /// JPEG blocking ([`acch_core::FrameQuality::blockiness`]; 0: not
     /// measured).
     pub blockiness: f32,
-    /// The set the later stages ran the frame through.
+    /// Sharpness over the window the sharp set found the object in
+    /// ([`acch_core::QualityMeter::sharpness_within`]; 0: not measured, as
+    /// on a noisy or blocky frame, with nothing found or no strong edge in
+    /// the window).
+    pub object_sharpness: f32,
+    /// The set the later stages ran the frame through: the smoothed one
+    /// for a noisy or blocky frame, a blurred object, or one the sharp set
+    /// did not find.
     pub set: DatabaseSet,
 }
 

@@ -1,6 +1,7 @@
 //! A run that chooses the database set per frame (`smoothing = "auto"`):
-//! recognition measures each frame and sends a noisy one through the
-//! smoothed databases and a clean one through the sharp ones, every later
+//! recognition measures each frame and sends a noisy one, or one whose
+//! object is blurred, through the smoothed databases and a clean one
+//! through the sharp ones, every later
 //! stage follows the choice the header carries, what a stage was not built
 //! for is a counted fault, and a database that cannot stand in for the
 //! sharp one is refused.
@@ -47,11 +48,13 @@ fn settings() -> StageSettings {
 }
 
 /// A frame of fruitbox on background A seen from (70°, 30°), with sensor
-/// noise of `noise_sigma` grey levels.
-fn frame(noise_sigma: f32) -> (FrameHeader, Vec<u8>) {
+/// noise of `noise_sigma` grey levels, blurred by a Gaussian of
+/// `blur_sigma` px.
+fn frame(noise_sigma: f32, blur_sigma: f32) -> (FrameHeader, Vec<u8>) {
     let object = Arc::new(Object::builtin("fruitbox").unwrap());
     let mut config = SceneConfig::new(object, Background::A);
     config.effects.noise_sigma = noise_sigma;
+    config.effects.blur_sigma = blur_sigma;
     let r =
         Renderer::new(config, 1).render(&ViewPose::new(70.0, 30.0, DEFAULT_DISTANCE).unwrap(), 1);
     let header = FrameHeader::rgb(0, 640, 480, Intrinsics::from(&r.truth.intrinsics));
@@ -68,7 +71,8 @@ fn response(chain: &Chain) -> Vec<f32> {
 }
 
 #[test]
-fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the_sharp() {
+fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the_sharp()
+{
     let (sharp, smoothed) = (
         database("fruitbox", Smoothing::Off),
         database("fruitbox", Smoothing::Binomial),
@@ -76,18 +80,39 @@ fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the
     let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
     let mut sharp_only = Chain::build(&sharp, &settings()).unwrap();
     let mut smoothed_only = Chain::build(&smoothed, &settings()).unwrap();
-    for (noise, want) in [(0.0, DatabaseSet::Sharp), (5.0, DatabaseSet::Smoothed)] {
-        let (header, rgb) = frame(noise);
+    for (noise, blur, want) in [
+        (0.0, 0.0, DatabaseSet::Sharp),
+        (5.0, 0.0, DatabaseSet::Smoothed),
+        (0.0, 2.0, DatabaseSet::Smoothed),
+    ] {
+        let (header, rgb) = frame(noise, blur);
         let out = both.process(&header, &rgb);
         let imaging = out.envelope().imaging;
-        assert_eq!(imaging.set, want, "noise {noise}: {imaging:?}");
+        assert_eq!(imaging.set, want, "noise {noise}, blur {blur}: {imaging:?}");
         // The measure is the frame's: near the noise added (a clean render
-        // measures below 1), blockiness about 1 (nothing compressed).
+        // measures below 1, a blurred one less), blockiness about 1
+        // (nothing compressed).
         assert!(
             (imaging.noise_sigma - noise.max(0.5)).abs() < 1.0,
             "noise {noise}: {imaging:?}"
         );
         assert!((0.8..1.2).contains(&imaging.blockiness), "{imaging:?}");
+        // The object's sharpness is measured on a frame the camera's
+        // measure left to the sharp set: above the bar when sharp (a
+        // one-pixel edge reads 0.5), below it when blurred (2 px reads
+        // about 0.2); not on a noisy frame.
+        let sharpness = imaging.object_sharpness;
+        match (noise, blur) {
+            (0.0, 0.0) => assert!(
+                (acch_core::BLURRED..0.6).contains(&sharpness),
+                "{imaging:?}"
+            ),
+            (0.0, _) => assert!(
+                (0.1..acch_core::BLURRED).contains(&sharpness),
+                "{imaging:?}"
+            ),
+            _ => assert_eq!(sharpness, 0.0, "{imaging:?}"),
+        }
         // Every stage ran the chosen set's database: the same estimate and
         // response as a chain of that database alone, and not the other's.
         let (same, other) = match want {
@@ -95,11 +120,19 @@ fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the
             DatabaseSet::Smoothed => (&mut smoothed_only, &mut sharp_only),
         };
         let alone = same.process(&header, &rgb);
-        assert_eq!(out.pose(), alone.pose(), "noise {noise}");
-        assert_eq!(out.region(), alone.region(), "noise {noise}");
-        assert_eq!(response(&both), response(same), "noise {noise}");
+        assert_eq!(out.pose(), alone.pose(), "noise {noise}, blur {blur}");
+        assert_eq!(out.region(), alone.region(), "noise {noise}, blur {blur}");
+        assert_eq!(
+            response(&both),
+            response(same),
+            "noise {noise}, blur {blur}"
+        );
         other.process(&header, &rgb);
-        assert_ne!(response(&both), response(other), "noise {noise}");
+        assert_ne!(
+            response(&both),
+            response(other),
+            "noise {noise}, blur {blur}"
+        );
         let pose = both.stages().pose.last_used();
         let chosen = match want {
             DatabaseSet::Sharp => both.stages().pose.sharp(),
@@ -108,7 +141,7 @@ fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the
         assert!(std::ptr::eq(pose, chosen));
     }
     // A run that does not choose measures nothing and says sharp.
-    let (header, rgb) = frame(5.0);
+    let (header, rgb) = frame(5.0, 0.0);
     let out = sharp_only.process(&header, &rgb);
     assert_eq!(out.envelope().imaging, Default::default());
 }
@@ -117,7 +150,7 @@ fn a_noisy_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the
 fn a_frame_for_a_set_a_stage_does_not_hold_is_a_counted_fault() {
     let sharp = database("fruitbox", Smoothing::Off);
     let mut chain = Chain::build(&sharp, &settings()).unwrap();
-    let (header, rgb) = frame(0.0);
+    let (header, rgb) = frame(0.0, 0.0);
     let mut recognised = chain.recognise(&header, &rgb);
     assert!(recognised.detection.done().is_some(), "fruitbox is in view");
     recognised.envelope_mut().imaging.set = DatabaseSet::Smoothed;

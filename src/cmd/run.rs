@@ -59,10 +59,11 @@ pub struct RunArgs {
     /// configuration measured for such a camera (docs/accuracy.md, "A
     /// noisy, compressed or blurred camera"; it costs a little accuracy on
     /// clean frames and precision among several objects); or `auto`:
-    /// recognition measures each frame's noise and JPEG blocking and runs
-    /// a noisy or compressed frame through the smoothed databases with the
-    /// confidence for such a camera, a clean one through the sharp ones
-    /// (both trained on first use; one object). Default off, or the
+    /// recognition measures each frame's noise and JPEG blocking, and the
+    /// object's sharpness, and runs a noisy or compressed frame, a blurred
+    /// object or one the sharp databases do not find through the smoothed
+    /// databases with the confidence for such a camera, the rest through
+    /// the sharp ones (both trained on first use; one object). Default off, or the
     /// configuration's.
     #[arg(long, value_name = "off|binomial|auto")]
     pub(crate) smoothing: Option<acch_pipeline::config::SmoothingChoice>,
@@ -392,7 +393,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         .filter(|_| cfg.smoothing_choice() == SmoothingChoice::ByFrame)
     {
         eprintln!(
-            "acch run: smoothed view database for noisy or compressed frames {}",
+            "acch run: smoothed view database for noisy, compressed or blurred frames {}",
             db.display()
         );
     }

@@ -1,15 +1,21 @@
 //! A stage held for two database sets, the sharp and the smoothed one, and
 //! run on each frame with the set recognition chose for it by the frame's
-//! measured noise and JPEG blocking (`smoothing = "auto"`).
+//! measured noise and JPEG blocking and the object's sharpness (`smoothing
+//! = "auto"`).
 //!
-//! Why per frame: the databases that smooth views and frames hold on noisy
-//! and compressed frames, where the sharp ones lose, and cost on clean
-//! frames and among several objects (docs/accuracy.md, "Which database a
-//! frame needs"); the frame's own measure tells the two cases apart
-//! whatever the object's match. Recognition is the one stage that reads
-//! pixels, so it measures and chooses; the later stages follow the choice
-//! the header carries. Seeding is not held twice: its fusion spans frames
-//! of both sets.
+//! Why per frame: the databases that smooth views and frames hold on noisy,
+//! compressed and blurred frames, where the sharp ones lose, and cost on
+//! clean frames and among several objects (docs/accuracy.md, "Which
+//! database a frame needs"); the frame's own measure tells the cases apart
+//! whatever the object's match. Noise and blocking are the camera's, read
+//! over the whole frame before any database sees it; blur is read over the
+//! window the sharp set found the object in, since a frame with nothing
+//! sharp in view measures as a blurred one, and a blurred object, or none
+//! found, sends the frame through the smoothed set's recognition again
+//! (a blurred object is often lost to the sharp set). Recognition is the
+//! one stage that reads pixels, so it measures and chooses; the later
+//! stages follow the choice the header carries. Seeding is not held twice:
+//! its fusion spans frames of both sets.
 
 use crate::stage::Stage;
 use crate::wire::{DatabaseSet, Fault, FrameImaging, Hop, StageId};
@@ -117,35 +123,62 @@ impl<S: Stage> Stage for BySet<S> {
         payload: &[u8],
         out: &mut [u8],
     ) -> Result<Chosen<S::Part>, Fault> {
-        let mut imaging = None;
-        let mut set = input.envelope().imaging.set;
-        if let Some(meter) = &mut self.meter {
-            let f = &input.envelope().frame;
-            if payload.len() != 3 * f.width as usize * f.height as usize {
-                return Err(Fault::FrameSize);
-            }
-            let q = meter.noise_and_blocking(payload, f.width, f.height);
-            set = if q.needs_smoothing() {
-                DatabaseSet::Smoothed
-            } else {
-                DatabaseSet::Sharp
+        let Some(meter) = &mut self.meter else {
+            // A later stage, or a run that does not choose: the header's set.
+            let set = input.envelope().imaging.set;
+            let stage = match (set, &mut self.smoothed) {
+                (DatabaseSet::Sharp, _) => &mut self.sharp,
+                (DatabaseSet::Smoothed, Some(s)) => s,
+                // A frame for a set this stage was not built with: the
+                // processes of one run disagree on their configuration.
+                (DatabaseSet::Smoothed, None) => return Err(Fault::Header),
             };
-            imaging = Some(FrameImaging {
-                noise_sigma: q.noise_sigma,
-                blockiness: q.blockiness,
-                set,
+            self.last = set;
+            let part = stage.process(input, payload, out)?;
+            return Ok(Chosen {
+                imaging: None,
+                part,
             });
-        }
-        let stage = match (set, &mut self.smoothed) {
-            (DatabaseSet::Sharp, _) => &mut self.sharp,
-            (DatabaseSet::Smoothed, Some(s)) => s,
-            // A frame for a set this stage was not built with: the
-            // processes of one run disagree on their configuration.
-            (DatabaseSet::Smoothed, None) => return Err(Fault::Header),
         };
-        self.last = set;
-        let part = stage.process(input, payload, out)?;
-        Ok(Chosen { imaging, part })
+        let f = &input.envelope().frame;
+        if payload.len() != 3 * f.width as usize * f.height as usize {
+            return Err(Fault::FrameSize);
+        }
+        let q = meter.noise_and_blocking(payload, f.width, f.height);
+        let mut imaging = FrameImaging {
+            noise_sigma: q.noise_sigma,
+            blockiness: q.blockiness,
+            object_sharpness: 0.0,
+            set: DatabaseSet::Sharp,
+        };
+        // The meter comes with the smoothed stage (`both`).
+        let smoothed = self.smoothed.as_mut().ok_or(Fault::Header)?;
+        let part = if q.needs_smoothing() {
+            imaging.set = DatabaseSet::Smoothed;
+            smoothed.process(input, payload, out)?
+        } else {
+            let part = self.sharp.process(input, payload, out)?;
+            let window = S::object_window(&part);
+            let sharpness = window.map_or(f32::NAN, |w| {
+                meter.sharpness_within(w.x, w.y, w.width, w.height)
+            });
+            if !sharpness.is_nan() {
+                imaging.object_sharpness = sharpness;
+            }
+            // A blurred object, or none found: a blurred object can be lost
+            // to the sharp set's recognition and found by the smoothed one.
+            if window.is_none() || acch_core::is_blurred(sharpness) {
+                imaging.set = DatabaseSet::Smoothed;
+                smoothed.process(input, payload, out)?
+            } else {
+                part
+            }
+        };
+        self.last = imaging.set;
+        Ok(Chosen {
+            imaging: Some(imaging),
+            part,
+        })
     }
 
     fn fault_in(chosen: &Chosen<S::Part>) -> Option<Fault> {

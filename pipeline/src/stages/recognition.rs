@@ -352,6 +352,10 @@ impl Stage for Recognition {
         }))
     }
 
+    fn object_window(part: &Outcome<Window>) -> Option<PixelRect> {
+        part.done().map(|w| w.window)
+    }
+
     fn output(frame: &FrameHeader, detection: Outcome<Window>) -> Recognised {
         Recognised {
             envelope: frame.envelope,

@@ -22,5 +22,5 @@ pub use histogram::{
 };
 pub use joint::{JointPalette, JointPaletteError};
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};
-pub use quality::{BLOCKY, FrameQuality, NOISY_SIGMA, QualityMeter};
+pub use quality::{BLOCKY, BLURRED, FrameQuality, NOISY_SIGMA, QualityMeter, is_blurred};
 pub use smooth::Smoothing;

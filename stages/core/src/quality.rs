@@ -76,6 +76,21 @@ impl FrameQuality {
     }
 }
 
+/// Sharpness over the object's window below which the object is blurred
+/// and the frame needs the smoothed databases (blur 1 px measures about
+/// 0.3 there, 2 px 0.22, the clean frames at least 0.34). Chosen on the
+/// development seed of the robust protocol (docs/accuracy.md, "A blurred
+/// object: its sharpness over its window").
+pub const BLURRED: f32 = 0.30;
+
+/// Whether an object whose window measured `sharpness`
+/// ([`QualityMeter::sharpness_within`]) is blurred enough that the
+/// databases that smooth views and frames match it better than the sharp
+/// ones. NaN (no strong edge in the window) is not: nothing says so.
+pub fn is_blurred(sharpness: f32) -> bool {
+    sharpness < BLURRED
+}
+
 /// Measures frames, reusing its buffers (no allocation per frame once warm).
 #[derive(Debug, Default)]
 pub struct QualityMeter {
@@ -85,7 +100,9 @@ pub struct QualityMeter {
     sums: Vec<u32>,
     /// One row's mask response per channel byte.
     response: Vec<u32>,
+    /// The last frame measured, grey, and its width.
     grey: Vec<f32>,
+    width: usize,
 }
 
 impl QualityMeter {
@@ -99,9 +116,22 @@ impl QualityMeter {
     pub fn measure(&mut self, rgb: &[u8], width: u32, height: u32) -> FrameQuality {
         let mut q = self.noise_and_blocking(rgb, width, height);
         if width >= 3 && height >= 3 {
-            q.sharpness = sharpness(&self.grey, width as usize, height as usize);
+            q.sharpness = self.sharpness_within(0, 0, width, height);
         }
         q
+    }
+
+    /// [`FrameQuality::sharpness`] over the window `width` x `height` from
+    /// column `x`, row `y` of the frame last measured (cut to it): the
+    /// object's own edges, whatever the rest of the frame shows (a frame
+    /// with nothing sharp in view measures as a blurred one). NaN: no
+    /// strong edge, or no frame measured.
+    pub fn sharpness_within(&self, x: u32, y: u32, width: u32, height: u32) -> f32 {
+        let (fw, fh) = (self.width, self.grey.len() / self.width.max(1));
+        let (x0, y0) = ((x as usize).min(fw), (y as usize).min(fh));
+        let w = (width as usize).min(fw - x0);
+        let h = (height as usize).min(fh - y0);
+        sharpness(&self.grey[y0 * fw + x0..], fw, w, h)
     }
 
     /// [`measure`](Self::measure) without the sharpness (NaN), which
@@ -113,10 +143,11 @@ impl QualityMeter {
             3 * w * h,
             "RGB buffer does not match {width}x{height}"
         );
+        self.grey.clear();
+        self.width = w;
         if w < 3 || h < 3 {
             return FrameQuality::default();
         }
-        self.grey.clear();
         self.grey.extend(
             rgb.chunks_exact(3)
                 .map(|p| (p[0] as f32 + p[1] as f32 + p[2] as f32) / 3.0),
@@ -176,11 +207,11 @@ fn at(r: &[u8], i: usize, n: usize) -> &[u8] {
     &r[i..i + n]
 }
 
-/// The frame's rows, then its columns, as (pixels along the line, lines,
-/// stride between a line's pixels, stride between lines) of a `w` x `h`
-/// buffer.
-fn rows_then_columns(w: usize, h: usize) -> [(usize, usize, usize, usize); 2] {
-    [(w, h, 1, w), (h, w, w, 1)]
+/// The rows, then the columns of a `w` x `h` window of a buffer `stride`
+/// wide, as (pixels along the line, lines, stride between a line's pixels,
+/// stride between lines).
+fn rows_then_columns(w: usize, h: usize, stride: usize) -> [(usize, usize, usize, usize); 2] {
+    [(w, h, 1, stride), (h, w, stride, 1)]
 }
 
 /// [`FrameQuality::blockiness`] of `grey`, `w` x `h`, over its rows and
@@ -222,12 +253,12 @@ fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
     }
 }
 
-/// The mean, over the strong edges of `grey` along x and along y, of the
-/// steepest central slope over the edge's step (see
-/// [`FrameQuality::sharpness`]).
-fn sharpness(grey: &[f32], w: usize, h: usize) -> f32 {
+/// The mean, over the strong edges of the `w` x `h` window at the start of
+/// `grey` (rows `stride` apart) along x and along y, of the steepest
+/// central slope over the edge's step (see [`FrameQuality::sharpness`]).
+fn sharpness(grey: &[f32], stride: usize, w: usize, h: usize) -> f32 {
     let (mut sum, mut n) = (0f64, 0u64);
-    for (len, lines, stride, line_step) in rows_then_columns(w, h) {
+    for (len, lines, stride, line_step) in rows_then_columns(w, h, stride) {
         if len < 2 * EDGE_REACH + 3 {
             continue;
         }
@@ -396,6 +427,37 @@ mod tests {
     }
 
     #[test]
+    fn a_window_measures_its_own_edges() {
+        // Sharp bars beside bars blurred by 2 px, each 96x32, one frame.
+        let ((sharp, w, h), (blurred, _, _)) = (bars(0.0), bars(2.0));
+        let (w2, h2) = (2 * w as usize, h as usize);
+        let frame: Vec<u8> = (0..h2)
+            .flat_map(|y| {
+                let row = |rgb: &[u8]| rgb[3 * y * w as usize..][..3 * w as usize].to_vec();
+                [row(&sharp), row(&blurred)].concat()
+            })
+            .collect();
+        let mut meter = QualityMeter::new();
+        let whole = meter.measure(&frame, w2 as u32, h2 as u32).sharpness;
+        let (left, right) = (
+            meter.sharpness_within(0, 0, w, h),
+            meter.sharpness_within(w, 0, w, h),
+        );
+        // Each half measures as the frame of its bars alone; the whole
+        // frame, between the two, says nothing of either.
+        let alone = |rgb: &[u8]| QualityMeter::new().measure(rgb, w, h).sharpness;
+        assert!((left - alone(&sharp)).abs() < 0.02, "{left}");
+        assert!((right - alone(&blurred)).abs() < 0.02, "{right}");
+        assert!(left > whole && whole > right, "{left} {whole} {right}");
+        assert!(!is_blurred(left) && is_blurred(right), "{left} {right}");
+        // A window cut to the frame, one outside it, no edge at all.
+        assert_eq!(meter.sharpness_within(w, 0, 10 * w, 10 * h), right);
+        assert!(meter.sharpness_within(3 * w, 0, w, h).is_nan());
+        assert!(!is_blurred(f32::NAN));
+        assert!(QualityMeter::new().sharpness_within(0, 0, 8, 8).is_nan());
+    }
+
+    #[test]
     fn a_tiny_frame_measures_as_zero() {
         let mut meter = QualityMeter::new();
         let q = meter.measure(&[0; 12], 2, 2);
@@ -435,7 +497,7 @@ mod tests {
             .map(|p| (p[0] as f32 + p[1] as f32 + p[2] as f32) / 3.0)
             .collect();
         let mut by_place = [0u64; JPEG_BLOCK];
-        for (len, lines, stride, line_step) in rows_then_columns(w, h) {
+        for (len, lines, stride, line_step) in rows_then_columns(w, h, w) {
             for line in 0..lines {
                 let at = |i: usize| grey[line * line_step + i * stride];
                 let step = |i: usize| (at(i) - at(i - 1)).abs();
