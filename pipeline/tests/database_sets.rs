@@ -147,6 +147,32 @@ fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_
 }
 
 #[test]
+fn a_frame_the_sharp_set_finds_nothing_in_goes_through_the_smoothed_set_which_finds_nothing_either()
+{
+    let (sharp, smoothed) = (
+        database("fruitbox", Smoothing::Off),
+        database("fruitbox", Smoothing::Binomial),
+    );
+    let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
+    // Another object where the fruitbox would be: nothing to find.
+    let can = Arc::new(Object::builtin("can").unwrap());
+    let r = Renderer::new(SceneConfig::new(can, Background::A), 1)
+        .render(&ViewPose::new(70.0, 30.0, DEFAULT_DISTANCE).unwrap(), 1);
+    let header = FrameHeader::rgb(0, 640, 480, Intrinsics::from(&r.truth.intrinsics));
+    let out = both.process(&header, r.image.as_raw());
+    let imaging = out.envelope().imaging;
+    // Tried with both sets, found by neither, nothing measured of an
+    // object that is not there.
+    assert_eq!(imaging.set, DatabaseSet::Smoothed, "{imaging:?}");
+    assert_eq!(imaging.object_sharpness, 0.0, "{imaging:?}");
+    assert!(out.detection().done().is_none(), "{:?}", out.detection());
+    assert!(std::ptr::eq(
+        both.stages().recognition.last_used(),
+        both.stages().recognition.smoothed().unwrap()
+    ));
+}
+
+#[test]
 fn a_frame_for_a_set_a_stage_does_not_hold_is_a_counted_fault() {
     let sharp = database("fruitbox", Smoothing::Off);
     let mut chain = Chain::build(&sharp, &settings()).unwrap();

@@ -190,7 +190,7 @@ pub const RESULT_SCHEMA: &str = r#"{
       "rotation_xyzw": {"type": "array", "items": {"type": "number"}}}},
     "imaging": {"type": "object", "description": "the frame's noise and JPEG blocking and the object's sharpness as recognition measured them, and the database set they chose (sharp or smoothed); null unless the run chooses (smoothing auto)", "properties": {
       "noise_sigma": {"type": "number"}, "blockiness": {"type": "number"},
-      "object_sharpness": {"type": ["number", "null"], "description": "over the object's window; null when not measured"},
+      "object_sharpness": {"type": "number", "description": "over the object's window; null when not measured"},
       "set": {"type": "string"}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
