@@ -180,6 +180,7 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     assert!(name.ends_with("-imaging-smoothed.acchdb"), "{name}");
     assert_eq!(count(&summary, "results"), 30, "{summary}");
     assert_eq!(count(&summary, "smoothed"), 0, "{summary}");
+    assert_eq!(count(&summary, "smoothed_for_not_found"), 0, "{summary}");
     assert!(count(&summary, "accepted") >= 24, "{summary}");
     assert_eq!(count(&summary, "accepted_wrong"), 0, "{summary}");
     // A noisy camera, in the stage processes: every frame through the
@@ -190,6 +191,7 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     let results = count(&summary, "results");
     assert!(results >= 24, "{summary}");
     assert_eq!(count(&summary, "smoothed"), results, "{summary}");
+    assert_eq!(count(&summary, "smoothed_for_camera"), results, "{summary}");
     assert!(count(&summary, "accepted") * 5 >= results * 4, "{summary}");
     assert_eq!(count(&summary, "accepted_wrong"), 0, "{summary}");
     assert_eq!(count(&summary, "faulted"), 0, "{summary}");
@@ -203,6 +205,16 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     let recipe = ["--smoothing", "binomial", "--confidence-imaging"];
     let (_, alone) = run_naming_database(&[&["--config", cfg][..], &recipe].concat(), dir.path());
     assert_eq!(count(&auto, "smoothed"), count(&auto, "results"), "{auto}");
+    assert_eq!(count(&auto, "smoothed_for_camera"), 0, "{auto}");
+    assert_eq!(
+        count(&auto, "smoothed_for_blur") + count(&auto, "smoothed_for_not_found"),
+        count(&auto, "results"),
+        "{auto}"
+    );
+    assert!(
+        count(&auto, "smoothed_for_blur") * 5 >= count(&auto, "results") * 4,
+        "{auto}"
+    );
     for key in ["results", "found", "accepted", "accepted_wrong"] {
         assert_eq!(
             count(&auto, key),

@@ -5,7 +5,7 @@
 //! of ours.
 
 use crate::stages::Seeded;
-use crate::wire::{Hop, STAGES, StageId};
+use crate::wire::{Hop, STAGES, SmoothedFor, StageId};
 use glam::DQuat;
 use serde::Serialize;
 
@@ -97,6 +97,9 @@ pub struct ImagingJson {
     pub object_sharpness: Option<f32>,
     /// The databases the frame went through: sharp or smoothed.
     pub set: &'static str,
+    /// Why smoothed: `camera` (noise or JPEG blocking), `blur` (the object)
+    /// or `not_found` (by the sharp databases); None: sharp.
+    pub smoothed_for: Option<&'static str>,
 }
 
 /// The seeding stage's pose fused over time, in a result.
@@ -289,6 +292,7 @@ impl<'a> ResultJson<'a> {
                 object_sharpness: (e.imaging.object_sharpness > 0.0)
                     .then_some(e.imaging.object_sharpness),
                 set: e.imaging.set.name(),
+                smoothed_for: e.imaging.smoothed_for().map(SmoothedFor::name),
             }),
             trail: StageId::ALL.map(|s| {
                 let t = e.trail.of(s);

@@ -3,7 +3,7 @@
 //! carried, and latency from every frame's timing trail.
 
 use crate::stages::{Rating, Seeded};
-use crate::wire::{DatabaseSet, Hop, Outcome, StageId};
+use crate::wire::{Hop, Outcome, SmoothedFor, StageId};
 use acch_confidence::Tolerance;
 use serde::Serialize;
 
@@ -96,6 +96,12 @@ pub struct Outcomes {
     /// noisy or compressed, the object blurred, or not found by the sharp
     /// ones (`smoothing = "auto"`).
     pub smoothed: u64,
+    /// Of them, for the camera's noise or JPEG blocking.
+    pub smoothed_for_camera: u64,
+    /// Of them, for a blurred object.
+    pub smoothed_for_blur: u64,
+    /// Of them, because the sharp databases found no object.
+    pub smoothed_for_not_found: u64,
 }
 
 /// Whether any stage of `m` failed on it.
@@ -118,7 +124,14 @@ impl Outcomes {
         };
         let (mut phi, mut theta, mut with_truth) = (0.0, 0.0, 0u64);
         for m in results {
-            o.smoothed += (m.envelope().imaging.set == DatabaseSet::Smoothed) as u64;
+            if let Some(why) = m.envelope().imaging.smoothed_for() {
+                o.smoothed += 1;
+                *match why {
+                    SmoothedFor::Camera => &mut o.smoothed_for_camera,
+                    SmoothedFor::Blur => &mut o.smoothed_for_blur,
+                    SmoothedFor::NotFound => &mut o.smoothed_for_not_found,
+                } += 1;
+            }
             o.found += m.detection().done().is_some() as u64;
             o.faulted += faulted(m) as u64;
             let Some(p) = m.pose().done() else { continue };

@@ -475,6 +475,28 @@ impl DatabaseSet {
     }
 }
 
+/// Why recognition sent a frame through the smoothed set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SmoothedFor {
+    /// The camera's noise or JPEG blocking.
+    Camera,
+    /// The object blurred, measured over the sharp set's window.
+    Blur,
+    /// The sharp set found no object.
+    NotFound,
+}
+
+impl SmoothedFor {
+    /// Its name in results: `camera`, `blur` or `not_found`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SmoothedFor::Camera => "camera",
+            SmoothedFor::Blur => "blur",
+            SmoothedFor::NotFound => "not_found",
+        }
+    }
+}
+
 /// What recognition measured of the frame's camera and of the object, and
 /// the database set it chose for the frame by them (a run with `smoothing =
 /// "auto"`; otherwise nothing measured and the sharp set).
@@ -496,6 +518,31 @@ pub struct FrameImaging {
     /// for a noisy or blocky frame, a blurred object, or one the sharp set
     /// did not find.
     pub set: DatabaseSet,
+}
+
+impl FrameImaging {
+    /// Why the frame went through the smoothed set; None: the sharp one.
+    /// Read back from the measures recognition chose by: the camera's
+    /// first, then the object's sharpness, measured only when the sharp
+    /// set found the object (and then above 0: it is a mean over slope
+    /// maxima, each above 0).
+    pub fn smoothed_for(&self) -> Option<SmoothedFor> {
+        if self.set != DatabaseSet::Smoothed {
+            return None;
+        }
+        let camera = acch_core::FrameQuality {
+            noise_sigma: self.noise_sigma,
+            blockiness: self.blockiness,
+            sharpness: f32::NAN,
+        };
+        Some(if camera.needs_smoothing() {
+            SmoothedFor::Camera
+        } else if self.object_sharpness > 0.0 {
+            SmoothedFor::Blur
+        } else {
+            SmoothedFor::NotFound
+        })
+    }
 }
 
 /// What every header carries: the frame, its trail, its reads and its

@@ -11,7 +11,7 @@ use acch_capture::{
 };
 use acch_core::{Smoothing, ViewDatabase};
 use acch_pipeline::stages::{BuildError, Stages};
-use acch_pipeline::wire::{DatabaseSet, Fault, Intrinsics};
+use acch_pipeline::wire::{DatabaseSet, Fault, Intrinsics, SmoothedFor};
 use acch_pipeline::{Chain, FrameHeader, Hop, StageSettings};
 use acch_pose::train::TrainConfig;
 use std::sync::Arc;
@@ -80,15 +80,16 @@ fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_
     let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
     let mut sharp_only = Chain::build(&sharp, &settings()).unwrap();
     let mut smoothed_only = Chain::build(&smoothed, &settings()).unwrap();
-    for (noise, blur, want) in [
-        (0.0, 0.0, DatabaseSet::Sharp),
-        (5.0, 0.0, DatabaseSet::Smoothed),
-        (0.0, 2.0, DatabaseSet::Smoothed),
+    for (noise, blur, want, why) in [
+        (0.0, 0.0, DatabaseSet::Sharp, None),
+        (5.0, 0.0, DatabaseSet::Smoothed, Some(SmoothedFor::Camera)),
+        (0.0, 2.0, DatabaseSet::Smoothed, Some(SmoothedFor::Blur)),
     ] {
         let (header, rgb) = frame(noise, blur);
         let out = both.process(&header, &rgb);
         let imaging = out.envelope().imaging;
         assert_eq!(imaging.set, want, "noise {noise}, blur {blur}: {imaging:?}");
+        assert_eq!(imaging.smoothed_for(), why, "{imaging:?}");
         // The measure is the frame's: near the noise added (a clean render
         // measures below 1, a blurred one less), blockiness about 1
         // (nothing compressed).
@@ -165,6 +166,7 @@ fn a_frame_the_sharp_set_finds_nothing_in_goes_through_the_smoothed_set_which_fi
     // object that is not there.
     assert_eq!(imaging.set, DatabaseSet::Smoothed, "{imaging:?}");
     assert_eq!(imaging.object_sharpness, 0.0, "{imaging:?}");
+    assert_eq!(imaging.smoothed_for(), Some(SmoothedFor::NotFound));
     assert!(out.detection().done().is_none(), "{:?}", out.detection());
     assert!(std::ptr::eq(
         both.stages().recognition.last_used(),

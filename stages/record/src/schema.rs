@@ -191,7 +191,8 @@ pub const RESULT_SCHEMA: &str = r#"{
     "imaging": {"type": "object", "description": "the frame's noise and JPEG blocking and the object's sharpness as recognition measured them, and the database set they chose (sharp or smoothed); null unless the run chooses (smoothing auto)", "properties": {
       "noise_sigma": {"type": "number"}, "blockiness": {"type": "number"},
       "object_sharpness": {"type": "number", "description": "over the object's window; null when not measured"},
-      "set": {"type": "string"}}}
+      "set": {"type": "string"},
+      "smoothed_for": {"type": "string", "description": "why smoothed: camera (noise or JPEG blocking), blur (the object) or not_found (by the sharp databases); null when sharp"}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
 }"#;
