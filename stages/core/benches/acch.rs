@@ -1,7 +1,8 @@
 //! Benchmarks of the ACCH hot paths: histogram extraction over 64, 128 and
 //! 256 px square ROIs (default stride 2, and stride 1 which visits every
-//! pixel like scikit-image's `graycomatrix`), histogram intersection and the
-//! response of a 216-view database.
+//! pixel like scikit-image's `graycomatrix`), histogram intersection, the
+//! response of a 216-view database, and the frame quality measure a run
+//! with `smoothing = "auto"` takes of every 640x480 frame.
 //!
 //! `cargo bench -p acch-core --bench acch` runs them (see bench/README.md).
 //! With `ACCH_BENCH_DUMP=FILE` set, the bench instead writes the test image's
@@ -10,8 +11,8 @@
 //! `graycomatrix`, and exits.
 
 use acch_core::{
-    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, Rect, View,
-    ViewDatabase, intersection,
+    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, QualityMeter, Rect,
+    View, ViewDatabase, intersection,
 };
 use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;
@@ -168,6 +169,35 @@ fn bench_matching(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
     });
 }
 
+/// A 640x480 RGB frame: 8x8 blocks of a colour that varies from block to
+/// block (edges on the JPEG grid and off it, flat blocks for the noise),
+/// with a quarter of the pixels hashed noise.
+fn rgb_frame() -> (Vec<u8>, u32, u32) {
+    let (w, h) = (640u32, 480u32);
+    let mut rgb = Vec::with_capacity(3 * (w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            // Blocks offset by 3 px: half their edges off the grid.
+            let i = texture(x + 3, y + 3) as u32;
+            for c in 0..3u32 {
+                rgb.push(((i * (37 + 11 * c)) % 256) as u8);
+            }
+        }
+    }
+    (rgb, w, h)
+}
+
+fn bench_quality(c: &mut Criterion) {
+    let (rgb, w, h) = rgb_frame();
+    let mut meter = QualityMeter::new();
+    c.bench_function("quality/noise_and_blocking/640x480", |b| {
+        b.iter(|| meter.noise_and_blocking(black_box(&rgb), w, h))
+    });
+    c.bench_function("quality/measure/640x480", |b| {
+        b.iter(|| meter.measure(black_box(&rgb), w, h))
+    });
+}
+
 fn main() {
     let image = test_image();
     let mask = vec![1u8; image.data.len()];
@@ -182,5 +212,6 @@ fn main() {
         .configure_from_args();
     bench_extract(&mut c, &image, &mask);
     bench_matching(&mut c, &image, &mask);
+    bench_quality(&mut c);
     c.final_summary();
 }

@@ -103,6 +103,8 @@ pub struct QualityMeter {
     /// The last frame measured, grey, and its width.
     grey: Vec<f32>,
     width: usize,
+    /// Buffers of the blockiness.
+    steps: StepScratch,
 }
 
 impl QualityMeter {
@@ -196,7 +198,7 @@ impl QualityMeter {
         let flat_mean = means[..flat].iter().sum::<f32>() / flat as f32;
         FrameQuality {
             noise_sigma: flat_mean * (std::f32::consts::FRAC_PI_2).sqrt() / 6.0,
-            blockiness: blockiness(grey, w, h),
+            blockiness: blockiness(grey, w, h, &mut self.steps),
             sharpness: f32::NAN,
         }
     }
@@ -214,36 +216,81 @@ fn rows_then_columns(w: usize, h: usize, stride: usize) -> [(usize, usize, usize
     [(w, h, 1, stride), (h, w, stride, 1)]
 }
 
-/// [`FrameQuality::blockiness`] of `grey`, `w` x `h`, over its rows and
-/// columns (1, chance, when too few steps stand out to tell).
-fn blockiness(grey: &[f32], w: usize, h: usize) -> f32 {
+/// Buffers of [`blockiness`], reused between frames.
+#[derive(Debug, Default)]
+struct StepScratch {
+    /// One row's steps (along it), or one row's steps down the columns,
+    /// for the row before, this one and the next.
+    steps: [Vec<f32>; 3],
+    /// One row's steps standing out (0/1), by pixel.
+    flags: Vec<u8>,
+}
+
+/// Whether step `s` stands out between its neighbours `before` and
+/// `after`: branch-free, as the frames' noise makes it a coin's toss.
+#[inline]
+fn stands_out(before: f32, s: f32, after: f32) -> u8 {
+    ((s > 1.0) & (s > before) & (s > after)) as u8
+}
+
+/// [`FrameQuality::blockiness`] of `grey`, `w` x `h` (at least 3 x 3),
+/// over its rows and columns (1, chance, when too few steps stand out to
+/// tell). Each step is taken once, and the counts are made without
+/// branches over whole rows, so they vectorise.
+fn blockiness(grey: &[f32], w: usize, h: usize, scratch: &mut StepScratch) -> f32 {
     // Steps larger than both neighbours, counted by their place on the grid
     // (a step into pixel i is on the boundary when i is a multiple of 8):
     // every place alike, so content does not favour the boundary.
     let mut by_place = [0u64; JPEG_BLOCK];
-    let stands_out = |before: f32, s: f32, after: f32| s > 1.0 && s > before && s > after;
-    // Along each row.
+    let StepScratch { steps, flags } = scratch;
+    // Along each row: step i is into pixel i, counted for i in 2..w-1.
+    let step = &mut steps[0];
+    step.resize(w, 0.0);
+    flags.clear();
+    flags.resize(w.next_multiple_of(JPEG_BLOCK), 0);
     for row in grey.chunks_exact(w) {
-        let step = |i: usize| (row[i] - row[i - 1]).abs();
-        for i in 2..w.saturating_sub(1) {
-            by_place[i % JPEG_BLOCK] += stands_out(step(i - 1), step(i), step(i + 1)) as u64;
+        for ((s, &here), &before) in step[1..].iter_mut().zip(&row[1..]).zip(row) {
+            *s = (here - before).abs();
+        }
+        for (((f, &before), &s), &after) in flags[2..w - 1]
+            .iter_mut()
+            .zip(&step[1..])
+            .zip(&step[2..])
+            .zip(&step[3..])
+        {
+            *f = stands_out(before, s, after);
+        }
+        let mut row_places = [0u32; JPEG_BLOCK];
+        for chunk in flags.chunks_exact(JPEG_BLOCK) {
+            for (n, &f) in row_places.iter_mut().zip(chunk) {
+                *n += u32::from(f);
+            }
+        }
+        for (total, n) in by_place.iter_mut().zip(row_places) {
+            *total += u64::from(n);
         }
     }
-    // Down each column, the columns side by side: four rows at a time
-    // rather than a column at a time across the whole frame.
-    for i in 2..h.saturating_sub(1) {
-        let row = |k: usize| &grey[k * w..(k + 1) * w];
-        let (r0, r1, r2, r3) = (row(i - 2), row(i - 1), row(i), row(i + 1));
-        let mut count = 0u64;
-        for x in 0..w {
-            let (before, s, after) = (
-                (r1[x] - r0[x]).abs(),
-                (r2[x] - r1[x]).abs(),
-                (r3[x] - r2[x]).abs(),
-            );
-            count += stands_out(before, s, after) as u64;
-        }
-        by_place[i % JPEG_BLOCK] += count;
+    // Down each column, the columns side by side: the steps into rows i-1,
+    // i and i+1, each row's taken once and passed on.
+    let down = |into: &mut Vec<f32>, k: usize| {
+        let (above, here) = (&grey[(k - 1) * w..k * w], &grey[k * w..(k + 1) * w]);
+        into.clear();
+        into.extend(here.iter().zip(above).map(|(&h, &a)| (h - a).abs()));
+    };
+    let [into_above, into_here, into_below] = steps;
+    down(into_above, 1);
+    down(into_here, 2);
+    for i in 2..h - 1 {
+        down(into_below, i + 1);
+        let count: u32 = into_above
+            .iter()
+            .zip(into_here.iter())
+            .zip(into_below.iter())
+            .map(|((&before, &s), &after)| u32::from(stands_out(before, s, after)))
+            .sum();
+        by_place[i % JPEG_BLOCK] += u64::from(count);
+        std::mem::swap(into_above, into_here);
+        std::mem::swap(into_here, into_below);
     }
     let total: u64 = by_place.iter().sum();
     if total < MIN_BLOCK_STEPS {
