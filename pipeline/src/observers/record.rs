@@ -218,6 +218,11 @@ impl Observe for Recording {
             ),
             (None, _) => "no estimate".into(),
         };
+        // What a viewer needs to read the estimate: which databases made it.
+        let caption = match e.imaging.smoothed_for() {
+            Some(why) => format!("{caption} (smoothed: {})", why.name()),
+            None => caption,
+        };
         let overlay = Overlay {
             window: m.detection().done().map(|w| rect(w.window.to_array())),
             roi: m.region().done().map(|r| rect(r.to_array())),
