@@ -50,6 +50,7 @@ pub trait Stage {
     /// Where in the frame its part found the object (recognition's
     /// window), for a run that chooses its database set by how sharp the
     /// object is ([`crate::stages::BySet`]); None: this stage finds none.
+    /// Only recognition says: the other stages keep this default.
     fn object_window(_part: &Self::Part) -> Option<crate::wire::PixelRect> {
         None
     }

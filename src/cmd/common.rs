@@ -146,7 +146,8 @@ pub struct HistogramArgs {
     /// use and cached apart from the default ones. eval's robust protocol
     /// also takes `auto`: each frame through the sharp or the smoothed
     /// databases (with the confidence for a worse camera), as its measured
-    /// noise and JPEG blocking say (`acch run --smoothing auto`).
+    /// noise and JPEG blocking and the object's sharpness say (`acch run
+    /// --smoothing auto`).
     #[arg(long, default_value = "off", value_name = "off|binomial|auto")]
     pub smoothing: SmoothingChoice,
 }

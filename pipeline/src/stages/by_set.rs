@@ -167,6 +167,8 @@ impl<S: Stage> Stage for BySet<S> {
             }
             // A blurred object, or none found: a blurred object can be lost
             // to the sharp set's recognition and found by the smoothed one.
+            // `FrameImaging::smoothed_for` reads this choice back from the
+            // measures: keep the two in step.
             if window.is_none() || acch_core::is_blurred(sharpness) {
                 imaging.set = DatabaseSet::Smoothed;
                 smoothed.process(input, payload, out)?

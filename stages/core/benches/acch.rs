@@ -170,14 +170,15 @@ fn bench_matching(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
 }
 
 /// A 640x480 RGB frame: 8x8 blocks of a colour that varies from block to
-/// block (edges on the JPEG grid and off it, flat blocks for the noise),
-/// with a quarter of the pixels hashed noise.
+/// block (their edges off the JPEG grid), with a quarter of the pixels
+/// hashed noise.
 fn rgb_frame() -> (Vec<u8>, u32, u32) {
     let (w, h) = (640u32, 480u32);
     let mut rgb = Vec::with_capacity(3 * (w * h) as usize);
     for y in 0..h {
         for x in 0..w {
-            // Blocks offset by 3 px: half their edges off the grid.
+            // Blocks offset by 3 px: their edges off the JPEG grid, where
+            // only the noise makes steps.
             let i = texture(x + 3, y + 3) as u32;
             for c in 0..3u32 {
                 rgb.push(((i * (37 + 11 * c)) % 256) as u8);

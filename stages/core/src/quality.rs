@@ -100,8 +100,10 @@ pub struct QualityMeter {
     sums: Vec<u32>,
     /// One row's mask response per channel byte.
     response: Vec<u32>,
-    /// The last frame measured, grey, and its width.
+    /// The last frame measured, grey (empty when it was too small to
+    /// measure).
     grey: Vec<f32>,
+    /// The last frame's width.
     width: usize,
     /// Buffers of the blockiness.
     steps: StepScratch,
@@ -130,7 +132,10 @@ impl QualityMeter {
     /// strong edge, or no frame measured.
     pub fn sharpness_within(&self, x: u32, y: u32, width: u32, height: u32) -> f32 {
         let (fw, fh) = (self.width, self.grey.len() / self.width.max(1));
-        let (x0, y0) = ((x as usize).min(fw), (y as usize).min(fh));
+        let (x0, y0) = (x as usize, y as usize);
+        if x0 >= fw || y0 >= fh {
+            return f32::NAN;
+        }
         let w = (width as usize).min(fw - x0);
         let h = (height as usize).min(fh - y0);
         sharpness(&self.grey[y0 * fw + x0..], fw, w, h)
@@ -219,9 +224,10 @@ fn rows_then_columns(w: usize, h: usize, stride: usize) -> [(usize, usize, usize
 /// Buffers of [`blockiness`], reused between frames.
 #[derive(Debug, Default)]
 struct StepScratch {
-    /// One row's steps (along it), or one row's steps down the columns,
-    /// for the row before, this one and the next.
-    steps: [Vec<f32>; 3],
+    /// Three rows of steps. Along the rows, the first holds the row's
+    /// steps (step i into pixel i); down the columns, the steps into the
+    /// row above, this one and the one below.
+    rows: [Vec<f32>; 3],
     /// One row's steps standing out (0/1), by pixel.
     flags: Vec<u8>,
 }
@@ -242,9 +248,9 @@ fn blockiness(grey: &[f32], w: usize, h: usize, scratch: &mut StepScratch) -> f3
     // (a step into pixel i is on the boundary when i is a multiple of 8):
     // every place alike, so content does not favour the boundary.
     let mut by_place = [0u64; JPEG_BLOCK];
-    let StepScratch { steps, flags } = scratch;
+    let StepScratch { rows, flags } = scratch;
     // Along each row: step i is into pixel i, counted for i in 2..w-1.
-    let step = &mut steps[0];
+    let step = &mut rows[0];
     step.resize(w, 0.0);
     flags.clear();
     flags.resize(w.next_multiple_of(JPEG_BLOCK), 0);
@@ -277,7 +283,7 @@ fn blockiness(grey: &[f32], w: usize, h: usize, scratch: &mut StepScratch) -> f3
         into.clear();
         into.extend(here.iter().zip(above).map(|(&h, &a)| (h - a).abs()));
     };
-    let [into_above, into_here, into_below] = steps;
+    let [into_above, into_here, into_below] = rows;
     down(into_above, 1);
     down(into_here, 2);
     for i in 2..h - 1 {
@@ -301,11 +307,11 @@ fn blockiness(grey: &[f32], w: usize, h: usize, scratch: &mut StepScratch) -> f3
 }
 
 /// The mean, over the strong edges of the `w` x `h` window at the start of
-/// `grey` (rows `stride` apart) along x and along y, of the steepest
+/// `grey` (rows `row_stride` apart) along x and along y, of the steepest
 /// central slope over the edge's step (see [`FrameQuality::sharpness`]).
-fn sharpness(grey: &[f32], stride: usize, w: usize, h: usize) -> f32 {
+fn sharpness(grey: &[f32], row_stride: usize, w: usize, h: usize) -> f32 {
     let (mut sum, mut n) = (0f64, 0u64);
-    for (len, lines, stride, line_step) in rows_then_columns(w, h, stride) {
+    for (len, lines, stride, line_step) in rows_then_columns(w, h, row_stride) {
         if len < 2 * EDGE_REACH + 3 {
             continue;
         }
@@ -592,5 +598,40 @@ mod tests {
                 assert!(q.blockiness > 1.5, "{q:?}");
             }
         }
+        // Narrow frames, tall enough that their noise makes the 2000 steps
+        // that count (each grid place tested at widths below, at and
+        // above a block), then a wider one after them: buffers of an
+        // earlier frame's size do not leak into the next.
+        for (w2, h2) in [(3, 3000), (5, 1500), (8, 1000), (9, 900), (64, 160)] {
+            let frame = noisy(&vec![128; 3 * w2 * h2], 6.0, rng.random());
+            let q = meter.noise_and_blocking(&frame, w2 as u32, h2 as u32);
+            let (noise, blockiness) = by_definition(&frame, w2, h2);
+            assert!(
+                (q.noise_sigma - noise).abs() < 1e-3,
+                "{w2}x{h2}: {q:?} {noise}"
+            );
+            assert_eq!(q.blockiness, blockiness, "{w2}x{h2}");
+            assert_ne!(
+                blockiness, 1.0,
+                "{w2}x{h2}: too few steps to test the count"
+            );
+        }
+    }
+
+    #[test]
+    fn a_window_off_the_frame_measures_nothing() {
+        let mut meter = QualityMeter::new();
+        assert!(
+            meter.sharpness_within(0, 0, 10, 10).is_nan(),
+            "no frame yet"
+        );
+        let (rgb, w, h) = scene();
+        meter.measure(&rgb, w, h);
+        assert!(meter.sharpness_within(w, 0, 10, 10).is_nan());
+        assert!(meter.sharpness_within(5, h, 10, 10).is_nan());
+        assert!(meter.sharpness_within(w + 7, h + 9, 10, 10).is_nan());
+        // A frame too small to measure leaves nothing to cut a window from.
+        meter.noise_and_blocking(&[0; 6], 2, 1);
+        assert!(meter.sharpness_within(1, 0, 10, 10).is_nan());
     }
 }
