@@ -62,8 +62,8 @@ pub struct PipelineConfig {
     /// object's sharpness, and runs a noisy or compressed frame, a blurred
     /// object or one the sharp databases do not find through the smoothed
     /// databases with the confidence trained for such a camera
-    /// (`smoothed_db`), the rest through the sharp ones (`db`). Not for database files otherwise;
-    /// `auto` not with several objects.
+    /// (`smoothed_db`), the rest through the sharp ones (`db`). Not for
+    /// database files otherwise; `auto` not with several objects.
     pub smoothing: String,
     /// With `smoothing = "auto"`: the smoothed set's database, trained
     /// from `db`'s object (`acch train --smoothing binomial

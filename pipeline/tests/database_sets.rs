@@ -1,10 +1,9 @@
 //! A run that chooses the database set per frame (`smoothing = "auto"`):
 //! recognition measures each frame and sends a noisy one, or one whose
 //! object is blurred, through the smoothed databases and a clean one
-//! through the sharp ones, every later
-//! stage follows the choice the header carries, what a stage was not built
-//! for is a counted fault, and a database that cannot stand in for the
-//! sharp one is refused.
+//! through the sharp ones, every later stage follows the choice the
+//! header carries, what a stage was not built for is a counted fault, and
+//! a database that cannot stand in for the sharp one is refused.
 
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,

@@ -63,8 +63,8 @@ pub struct RunArgs {
     /// object's sharpness, and runs a noisy or compressed frame, a blurred
     /// object or one the sharp databases do not find through the smoothed
     /// databases with the confidence for such a camera, the rest through
-    /// the sharp ones (both trained on first use; one object). Default off, or the
-    /// configuration's.
+    /// the sharp ones (both trained on first use; one object). Default
+    /// off, or the configuration's.
     #[arg(long, value_name = "off|binomial|auto")]
     pub(crate) smoothing: Option<acch_pipeline::config::SmoothingChoice>,
     /// Use (and on first use train) the databases whose confidence network
