@@ -69,13 +69,18 @@ fn response(chain: &Chain) -> Vec<f32> {
         .collect()
 }
 
+/// The fruitbox's sharp and smoothed databases: the two sets of a run.
+fn fruitbox_sets() -> (ViewDatabase, ViewDatabase) {
+    (
+        database("fruitbox", Smoothing::Off),
+        database("fruitbox", Smoothing::Binomial),
+    )
+}
+
 #[test]
 fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_through_the_sharp()
 {
-    let (sharp, smoothed) = (
-        database("fruitbox", Smoothing::Off),
-        database("fruitbox", Smoothing::Binomial),
-    );
+    let (sharp, smoothed) = fruitbox_sets();
     let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
     let mut sharp_only = Chain::build(&sharp, &settings()).unwrap();
     let mut smoothed_only = Chain::build(&smoothed, &settings()).unwrap();
@@ -149,10 +154,7 @@ fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_
 #[test]
 fn a_frame_the_sharp_set_finds_nothing_in_goes_through_the_smoothed_set_which_finds_nothing_either()
 {
-    let (sharp, smoothed) = (
-        database("fruitbox", Smoothing::Off),
-        database("fruitbox", Smoothing::Binomial),
-    );
+    let (sharp, smoothed) = fruitbox_sets();
     let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
     // Another object where the fruitbox would be: nothing to find.
     let can = Arc::new(Object::builtin("can").unwrap());
