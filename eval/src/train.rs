@@ -32,7 +32,7 @@ pub const CONFIDENCE_SEED_BASE: u64 = 1_000_000;
 
 /// Revision of the default training recipe; part of cached databases'
 /// names so that a changed recipe retrains instead of reusing a stale file.
-pub const TRAINING_REVISION: u32 = 6;
+pub const TRAINING_REVISION: u32 = 7;
 
 /// Seeds of the validation scenes the network's input is chosen on start
 /// here: disjoint from the training scenes' and from every protocol's test

@@ -1,7 +1,8 @@
 //! Benchmarks of the ACCH hot paths: histogram extraction over 64, 128 and
 //! 256 px square ROIs (default stride 2, and stride 1 which visits every
 //! pixel like scikit-image's `graycomatrix`), histogram intersection, the
-//! response of a 216-view database, and the frame quality measure a run
+//! response of a 216-view database, the colour layout (measured over a
+//! 128 px ROI, compared with 216 views'), and the frame quality measure a run
 //! with `smoothing = "auto"` takes of every 640x480 frame.
 //!
 //! `cargo bench -p acch-core --bench acch` runs them (see bench/README.md).
@@ -11,8 +12,8 @@
 //! `graycomatrix`, and exits.
 
 use acch_core::{
-    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, Palette, QualityMeter, Rect,
-    View, ViewDatabase, intersection,
+    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, LAYOUT_FIELDS, Palette,
+    QualityMeter, Rect, View, ViewDatabase, intersection, layout_distance, layout_into,
 };
 use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;
@@ -169,6 +170,38 @@ fn bench_matching(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
     });
 }
 
+/// What the colour layout adds to an estimate: the query's layout over a
+/// 128 px ROI, and its distance to every view's of a 216-view database.
+fn bench_layout(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
+    let per_view = COLOURS as usize * LAYOUT_FIELDS;
+    let mut query = vec![0.0; per_view];
+    c.bench_function("layout/measure/128", |b| {
+        b.iter(|| layout_into(black_box(image), Some(mask), roi(128), &mut query))
+    });
+    // Views: the layouts of 216 ROIs across the image.
+    let views: Vec<f32> = (0..216u32)
+        .flat_map(|i| {
+            let mut l = vec![0.0; per_view];
+            let r = Rect {
+                x: i % 12 * 10,
+                y: i / 12 * 7,
+                width: 128,
+                height: 128,
+            };
+            layout_into(image, Some(mask), r, &mut l);
+            l
+        })
+        .collect();
+    c.bench_function("layout/distance/216", |b| {
+        b.iter(|| {
+            views
+                .chunks_exact(per_view)
+                .map(|v| layout_distance(black_box(&query), v))
+                .sum::<f32>()
+        })
+    });
+}
+
 /// A 640x480 RGB frame: 8x8 blocks of a colour that varies from block to
 /// block (their edges off the JPEG grid), with a quarter of the pixels
 /// hashed noise.
@@ -213,6 +246,7 @@ fn main() {
         .configure_from_args();
     bench_extract(&mut c, &image, &mask);
     bench_matching(&mut c, &image, &mask);
+    bench_layout(&mut c, &image, &mask);
     bench_quality(&mut c);
     c.final_summary();
 }

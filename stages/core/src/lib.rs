@@ -10,6 +10,7 @@
 pub mod database;
 pub mod histogram;
 pub mod joint;
+pub mod layout;
 pub mod light;
 pub mod palette;
 pub mod quality;
@@ -21,6 +22,7 @@ pub use histogram::{
     match_value, roll_acch, roll_invariant, scaled_intersection,
 };
 pub use joint::{JointPalette, JointPaletteError};
+pub use layout::{LAYOUT_FIELDS, layout_distance, layout_into, scale_layout, unroll_layout};
 pub use palette::{ColourSpace, IndexImage, IndexView, NOT_OBJECT, Palette, PaletteError};
 pub use quality::{BLOCKY, BLURRED, FrameQuality, NOISY_SIGMA, QualityMeter, is_blurred};
 pub use smooth::Smoothing;

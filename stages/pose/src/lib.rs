@@ -83,6 +83,40 @@ pub fn store_view_pairs(db: &mut ViewDatabase, pairs: &[f32]) {
     db.sections.insert(VIEW_PAIRS_SECTION.to_owned(), bytes);
 }
 
+/// Section of a [`ViewDatabase`] holding each view's colour layout (see
+/// [`acch_core::layout`]; `f32` little-endian, `3 x C` per view in view
+/// order, offsets in pixels at the training scale). Absent (databases
+/// trained before it), the response is the histograms' alone.
+pub const VIEW_LAYOUTS_SECTION: &str = "view-layouts";
+
+/// Each view's colour layout, when `db` records one for every view (a
+/// section of another length or with a value that is not finite is
+/// refused: `None`).
+pub fn view_layouts(db: &ViewDatabase) -> Option<Vec<f32>> {
+    let bytes = db.sections.get(VIEW_LAYOUTS_SECTION)?;
+    let len = db.views().len() * db.params.colours as usize * acch_core::LAYOUT_FIELDS;
+    if bytes.len() != 4 * len {
+        return None;
+    }
+    let layouts: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    layouts.iter().all(|v| v.is_finite()).then_some(layouts)
+}
+
+/// Records each view's colour layout in `db` (views in order, `3 x C`
+/// each).
+pub fn store_view_layouts(db: &mut ViewDatabase, layouts: &[f32]) {
+    let bytes = layouts.iter().flat_map(|v| v.to_le_bytes()).collect();
+    db.sections.insert(VIEW_LAYOUTS_SECTION.to_owned(), bytes);
+}
+
+/// Match value a view gives up per object size (the square root of its
+/// area) that its colour layout lies from the query's. Chosen on the
+/// robust protocol's development seed (docs/accuracy.md).
+pub const LAYOUT_WEIGHT: f32 = 0.5;
+
 /// How a query's histogram is matched with a view's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Matching {
@@ -204,6 +238,10 @@ pub struct PoseEstimator {
     /// The extractor's pair rate at the training scale.
     rate_at_training: f32,
     matching: Matching,
+    /// Each view's colour layout, when the database records them.
+    view_layouts: Option<Vec<f32>>,
+    /// The last query's colour layout.
+    layout: Vec<f32>,
 }
 
 impl PoseEstimator {
@@ -235,6 +273,8 @@ impl PoseEstimator {
             },
             view_pairs: view_pairs(&db),
             rate_at_training,
+            view_layouts: view_layouts(&db),
+            layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             db,
         })
     }
@@ -361,6 +401,26 @@ impl PoseEstimator {
                 }
             }
             _ => self.db.response_into(&self.histogram, &mut self.response),
+        }
+        if pairs > 0
+            && scale > 0.0
+            && let Some(layouts) = &self.view_layouts
+        {
+            // Views whose colours sit elsewhere match less: what tells
+            // apart the turns of an object the histogram sees alike.
+            acch_core::layout_into(image, mask, roi, &mut self.layout);
+            acch_core::scale_layout(&mut self.layout, 1.0 / scale);
+            acch_core::unroll_layout(&mut self.layout, self.last_roll_deg);
+            let per_view = self.layout.len();
+            for ((r, l), v) in self
+                .response
+                .iter_mut()
+                .zip(layouts.chunks_exact(per_view))
+                .zip(self.db.views())
+            {
+                let d = acch_core::layout_distance(&self.layout, l) / v.size_px.max(1.0);
+                *r = (*r - LAYOUT_WEIGHT * d).max(0.0);
+            }
         }
         pairs
     }
@@ -711,6 +771,71 @@ mod tests {
             90.0,
             "the normalised match takes B"
         );
+    }
+
+    /// An 80 x 80 view of a lid from above: a teal disc (radius 30) with a
+    /// yellow mark (radius 4) 8 px from its centre toward `mark_deg`, on
+    /// grey; and its mask. Every pixel 10-20 px from the mark is lid: the
+    /// histogram cannot see where the mark sits.
+    fn lid(mark_deg: f32) -> (Vec<u8>, Vec<u8>) {
+        let (s, c) = mark_deg.to_radians().sin_cos();
+        let (mut rgb, mut mask) = (Vec::new(), Vec::new());
+        for i in 0..80 * 80 {
+            let (x, y) = ((i % 80) as f32 - 39.5, (i / 80) as f32 - 39.5);
+            let (mx, my) = (x - 8.0 * c, y - 8.0 * s);
+            let (inside, on_mark) = (x * x + y * y <= 900.0, mx * mx + my * my <= 16.0);
+            rgb.extend(match (inside, on_mark) {
+                (false, _) => [128, 128, 128],
+                (true, false) => [0, 128, 128],
+                (true, true) => [230, 200, 40],
+            });
+            mask.push(if inside { 255 } else { 0 });
+        }
+        (rgb, mask)
+    }
+
+    #[test]
+    fn a_lid_seen_from_above_is_told_apart_turned_by_its_layout() {
+        let turns: Vec<f32> = (0..12).map(|k| k as f32 * 30.0).collect();
+        let lids: Vec<_> = turns.iter().map(|&d| lid(d)).collect();
+        let views: Vec<_> = lids
+            .iter()
+            .zip(&turns)
+            .map(|((rgb, mask), &d)| train::LabelledView::new(rgb, mask, (80, 80), (90.0, d), 1.0))
+            .collect();
+        let config = train::TrainConfig {
+            colours: 4,
+            ..train::TrainConfig::default()
+        };
+        let db = train::build_database("lid", 1.0, &views, &config).unwrap();
+        assert!(view_layouts(&db).is_some(), "training records the layouts");
+        let mut histogram_alone = db.clone();
+        histogram_alone.sections.remove(VIEW_LAYOUTS_SECTION);
+        let (rgb, mask) = lid(120.0);
+        let index = db.palette.quantise(&rgb, 80, 80);
+        let roi = train::mask_bbox(&mask, 80, 80).unwrap();
+        let top2 = |db: &ViewDatabase| {
+            let mut e = PoseEstimator::new(db.clone()).unwrap();
+            let est = e
+                .estimate(
+                    &index,
+                    Some(&mask),
+                    roi,
+                    Some(1.0),
+                    Refinement::WinnerTakesAll,
+                )
+                .unwrap();
+            let top = e.top(2);
+            (est.phi_deg, top[0].1 - top[1].1)
+        };
+        let (_, margin) = top2(&histogram_alone);
+        assert!(
+            margin < 0.01,
+            "the histogram alone sees every turn alike: {margin}"
+        );
+        let (phi, margin) = top2(&db);
+        assert_eq!(phi, 120.0);
+        assert!(margin > 0.01, "the layout sets the turn apart: {margin}");
     }
 
     #[test]

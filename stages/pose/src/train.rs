@@ -219,9 +219,13 @@ pub fn build_database(
     let rate_at_training = extractor.pair_rate(1.0);
     let mut view_pairs = Vec::with_capacity(views.len());
     let mut mean = vec![0.0; params.len()];
+    let per_view = config.colours * acch_core::LAYOUT_FIELDS;
+    let (mut layout, mut layout_sum) = (vec![0.0; per_view], vec![0.0; per_view]);
+    let mut layouts = Vec::with_capacity(views.len() * per_view);
     let pose = |i: usize| (views[i].theta_deg, views[i].phi_deg.rem_euclid(360.0));
     for group in order.chunk_by(|&a, &b| pose(a) == pose(b)) {
         mean.fill(0.0);
+        layout_sum.fill(0.0);
         let (mut n, mut size_px, mut offset, mut pairs) = (0usize, 0.0f32, [0.0f32; 2], 0.0f32);
         for &i in group {
             let v = &views[i];
@@ -232,6 +236,18 @@ pub fn build_database(
                 .quantise_into(v.rgb, v.width, v.height, &mut index);
             let found = extractor.extract(&index, Some(v.mask), roi, v.scale, &mut hist);
             mean.iter_mut().zip(&hist).for_each(|(m, h)| *m += h);
+            // Layouts at the training scale; a colour's offsets averaged
+            // over the views it shows in, by its share.
+            acch_core::layout_into(&index, Some(v.mask), roi, &mut layout);
+            acch_core::scale_layout(&mut layout, 1.0 / v.scale);
+            for (s, l) in layout_sum
+                .chunks_exact_mut(acch_core::LAYOUT_FIELDS)
+                .zip(layout.chunks_exact(acch_core::LAYOUT_FIELDS))
+            {
+                s[0] += l[0];
+                s[1] += l[0] * l[1];
+                s[2] += l[0] * l[2];
+            }
             // Kept at the training scale, as the sizes.
             pairs += found as f32 * rate_at_training / extractor.pair_rate(v.scale);
             let area = v.mask.iter().filter(|&&m| m != 0).count() as f32;
@@ -262,11 +278,21 @@ pub fn build_database(
             &mean,
         );
         view_pairs.push(pairs / k);
+        for s in layout_sum.chunks_exact(acch_core::LAYOUT_FIELDS) {
+            let w = s[0];
+            let (x, y) = if w > 0.0 {
+                (s[1] / w, s[2] / w)
+            } else {
+                (0.0, 0.0)
+            };
+            layouts.extend([w / k, x, y]);
+        }
     }
     if db.views().is_empty() {
         return Err(TrainError::NoViews);
     }
     crate::store_view_pairs(&mut db, &view_pairs);
+    crate::store_view_layouts(&mut db, &layouts);
     Ok(db)
 }
 
