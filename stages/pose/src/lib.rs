@@ -775,8 +775,8 @@ mod tests {
 
     /// An 80 x 80 view of a lid from above: a teal disc (radius 30) with a
     /// yellow mark (radius 4) 8 px from its centre toward `mark_deg`, on
-    /// grey; and its mask. Every pixel 10-20 px from the mark is lid: the
-    /// histogram cannot see where the mark sits.
+    /// grey; and its mask. Every pixel 10-20 px from the mark's centre is
+    /// lid: the histogram can hardly see where the mark sits.
     fn lid(mark_deg: f32) -> (Vec<u8>, Vec<u8>) {
         let (s, c) = mark_deg.to_radians().sin_cos();
         let (mut rgb, mut mask) = (Vec::new(), Vec::new());
@@ -811,6 +811,14 @@ mod tests {
         assert!(view_layouts(&db).is_some(), "training records the layouts");
         let mut histogram_alone = db.clone();
         histogram_alone.sections.remove(VIEW_LAYOUTS_SECTION);
+        // A section of another length (another palette's, a cut file) is
+        // refused, not read across views.
+        let mut cut = db.clone();
+        cut.sections
+            .get_mut(VIEW_LAYOUTS_SECTION)
+            .unwrap()
+            .truncate(8);
+        assert!(view_layouts(&cut).is_none());
         let (rgb, mask) = lid(120.0);
         let index = db.palette.quantise(&rgb, 80, 80);
         let roi = train::mask_bbox(&mask, 80, 80).unwrap();
