@@ -22,6 +22,19 @@ pub fn failure_rule() -> Tolerance {
     Tolerance::default()
 }
 
+/// The view of `db` nearest to (θ, φ), degrees: the least sum of the
+/// squared differences in θ and in (wrapped) φ.
+pub fn nearest_view(db: &ViewDatabase, (theta, phi): (f32, f32)) -> usize {
+    let mut best = (f32::INFINITY, 0);
+    for (i, v) in db.views().iter().enumerate() {
+        let d = (v.theta_deg - theta).powi(2) + acch_pose::phi_error(v.phi_deg, phi).powi(2);
+        if d < best.0 {
+            best = (d, i);
+        }
+    }
+    best.1
+}
+
 /// Whether estimate (θ, φ) fails against the truth (θ, φ), degrees.
 pub fn fails(estimate: (f32, f32), truth: (f32, f32)) -> bool {
     !failure_rule().reliable(estimate, truth)

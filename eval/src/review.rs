@@ -128,19 +128,6 @@ pub fn review_starts(n: usize, seed: u64) -> Result<Vec<ViewPose>, EvalError> {
         .collect()
 }
 
-/// The database view nearest to (θ, φ).
-fn nearest_view(db: &ViewDatabase, theta: f64, phi: f64) -> usize {
-    let mut best = (f64::INFINITY, 0);
-    for (i, v) in db.views().iter().enumerate() {
-        let d = (v.theta_deg as f64 - theta).powi(2)
-            + (phi_error(v.phi_deg, phi as f32) as f64).powi(2);
-        if d < best.0 {
-            best = (d, i);
-        }
-    }
-    best.1
-}
-
 /// The next move (target elevation, azimuth turn) of `policy`, given the
 /// rejected frame's result and the views tried so far, in the arm's own
 /// azimuth (relative to the start, which is all the arm knows).
@@ -173,7 +160,9 @@ fn next_move(
             let dphi = if dphi > 180.0 { dphi - 360.0 } else { dphi };
             let score: f64 = hypotheses
                 .iter()
-                .map(|h| ambiguity[nearest_view(db, theta, h + dphi)] as f64)
+                .map(|h| {
+                    ambiguity[protocol::nearest_view(db, (theta as f32, (h + dphi) as f32))] as f64
+                })
                 .sum::<f64>()
                 / hypotheses.len() as f64;
             // Arm-relative target; views already tried teach nothing new.

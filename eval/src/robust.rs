@@ -170,6 +170,12 @@ pub struct ImageOutcome {
     /// The best match beyond 20° of the estimate's azimuth over the best
     /// ([`acch_confidence::rival_ratio`]); None: not found.
     pub rival: Option<f32>,
+    /// How the training view nearest the truth, as a query, rates the view
+    /// the estimate chose ([`acch_pose::PoseEstimator::respond_to_view`],
+    /// sharp database): 1 for the same view; at or above
+    /// [`acch_confidence::MAX_RIVAL_RATIO`] the database itself cannot
+    /// tell the truth from the estimate. None: not found.
+    pub look_alike: Option<f32>,
     /// The detection's score over its threshold; None: not found.
     pub score_margin: Option<f32>,
     /// The frame's measured noise, JPEG blocking and sharpness.
@@ -311,6 +317,7 @@ pub fn robust(
         &[SINGLE_IMAGE_LIGHT_SEARCH]
     };
     let bar = protocol::progress((conditions.len() * BACKGROUNDS.len()) as u64, "conditions");
+    let trained = acch_pose::PoseEstimator::new(db.clone())?;
     let mut rows = Vec::new();
     for condition in &conditions {
         let distance = match condition {
@@ -341,7 +348,14 @@ pub fn robust(
         for &search in searches {
             let distance_m = db.train_distance_m as f64 * distance;
             let sets = (db, smoothed);
-            let mut row = measure(sets, &scenes, object.radius_m(), distance_m, search)?;
+            let mut row = measure(
+                sets,
+                &trained,
+                &scenes,
+                object.radius_m(),
+                distance_m,
+                search,
+            )?;
             let (family, level) = condition.unwrap_or(("clean", 0.0));
             row.family = family.to_owned();
             row.level = level;
@@ -365,8 +379,10 @@ pub fn robust(
 
 /// The chain over `scenes`, in parallel (each image is searched afresh,
 /// so the order does not matter); the row's family is left to the caller.
+/// `trained` is an estimator over `db`, for how alike its views are.
 fn measure(
     (db, smoothed): (&ViewDatabase, Option<&ViewDatabase>),
+    trained: &acch_pose::PoseEstimator,
     scenes: &[Rendered],
     radius_m: f64,
     distance_m: f64,
@@ -380,9 +396,10 @@ fn measure(
                 (
                     protocol::chain_for_sets(db, smoothed, distance_m, light_search),
                     acch_core::QualityMeter::new(),
+                    vec![0f32; db.views().len()],
                 )
             },
-            |(chain, meter), (i, scene)| -> Result<_, EvalError> {
+            |(chain, meter, alike), (i, scene)| -> Result<_, EvalError> {
                 let chain = chain
                     .as_mut()
                     .map_err(|e| EvalError::Worker(e.to_string()))?;
@@ -406,9 +423,16 @@ fn measure(
                     )
                     .ok()
                 });
+                // How the truth's own training view rates the view chosen:
+                // what the database could tell apart at best.
+                let look_alike = posed.map(|e| {
+                    trained.respond_to_view(protocol::nearest_view(db, truth), alike);
+                    alike[e.best_view as usize]
+                });
                 Ok(ImageOutcome {
                     truth,
                     estimate,
+                    look_alike,
                     failed: estimate.is_none_or(|e| fails(e, truth)),
                     accepted: estimate.is_some() && verdict.is_some_and(|v| v.accepted),
                     match_value: posed.map(|e| e.best_value),
@@ -703,7 +727,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -727,6 +751,7 @@ impl RobustReport {
                     o.quality.sharpness,
                     o.set.name(),
                     o.object_sharpness,
+                    opt(o.look_alike),
                 );
             }
         }
@@ -826,7 +851,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness,look_alike\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

@@ -133,6 +133,53 @@ pub enum Matching {
     Visible,
 }
 
+/// Matches the normalised histogram `query` with every view of `db` into
+/// `out`: by the visible part when `visible` holds the views' pairs at the
+/// training scale and their factor to the query's pairs (the share of the
+/// query's pairs each whole view holds), else by the paper's normalised
+/// match value.
+fn match_views(db: &ViewDatabase, visible: Option<(&[f32], f32)>, query: &[f32], out: &mut [f32]) {
+    match visible {
+        Some((view_pairs, k)) => {
+            for (i, (r, n)) in out.iter_mut().zip(view_pairs).enumerate() {
+                *r = acch_core::scaled_intersection(query, db.histogram(i), n * k);
+            }
+        }
+        None => db.response_into(query, out),
+    }
+}
+
+/// Each view's pairs at the training scale (`view_pairs`, recorded by the
+/// database) when `matching` matches the views by their visible part.
+fn visible_pairs(view_pairs: &Option<Vec<f32>>, matching: Matching) -> Option<&[f32]> {
+    match (view_pairs, matching) {
+        (Some(pairs), Matching::Visible) => Some(pairs),
+        _ => None,
+    }
+}
+
+/// Lowers each view's match value in `out` by [`LAYOUT_WEIGHT`] times how
+/// far its colour layout (of `layouts`, view after view) lies from
+/// `layout` (at the training scale, upright), over the view's size.
+fn penalise_layouts(db: &ViewDatabase, layouts: &[f32], layout: &[f32], out: &mut [f32]) {
+    for ((r, l), v) in out
+        .iter_mut()
+        .zip(layouts.chunks_exact(layout.len()))
+        .zip(db.views())
+    {
+        let d = acch_core::layout_distance(layout, l) / v.size_px.max(1.0);
+        *r = (*r - LAYOUT_WEIGHT * d).max(0.0);
+    }
+}
+
+/// Whether [`PoseEstimator::respond_at`] measures the query's colour
+/// layout or reuses the last one measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Layout {
+    Measure,
+    Reuse,
+}
+
 /// One θ slice of the response: consecutive views with the same elevation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Slice {
@@ -240,7 +287,10 @@ pub struct PoseEstimator {
     matching: Matching,
     /// Each view's colour layout, when the database records them.
     view_layouts: Option<Vec<f32>>,
-    /// The last query's colour layout.
+    /// The last query's colour layout as measured (pixels of the image).
+    measured_layout: Vec<f32>,
+    /// The same at the training scale and upright: what the views are
+    /// compared with.
     layout: Vec<f32>,
 }
 
@@ -274,6 +324,7 @@ impl PoseEstimator {
             view_pairs: view_pairs(&db),
             rate_at_training,
             view_layouts: view_layouts(&db),
+            measured_layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             db,
         })
@@ -365,6 +416,21 @@ impl PoseEstimator {
         roi: Rect,
         scale: f32,
     ) -> u64 {
+        self.respond_at(image, mask, roi, scale, Layout::Measure)
+    }
+
+    /// [`Self::respond`]; `layout` says whether the query's colour layout
+    /// is measured or the last one is reused (the same image, mask and ROI
+    /// at another scale: the layout does not depend on the scale until it
+    /// is scaled).
+    fn respond_at(
+        &mut self,
+        image: &IndexImage,
+        mask: Option<&[u8]>,
+        roi: Rect,
+        scale: f32,
+        layout: Layout,
+    ) -> u64 {
         let pairs = self
             .extractor
             .extract(image, mask, roi, scale, &mut self.histogram);
@@ -388,41 +454,47 @@ impl PoseEstimator {
                 self.histogram.copy_from_slice(&search.rolled);
             }
         }
-        match (&self.view_pairs, self.matching) {
-            (Some(view_pairs), Matching::Visible) if pairs > 0 => {
-                // A whole view's pairs at this scale, over the query's.
-                let k = self.extractor.pair_rate(scale) / self.rate_at_training / pairs as f32;
-                for (i, (r, n)) in self.response.iter_mut().zip(view_pairs).enumerate() {
-                    *r = acch_core::scaled_intersection(
-                        &self.histogram,
-                        self.db.histogram(i),
-                        n * k,
-                    );
-                }
-            }
-            _ => self.db.response_into(&self.histogram, &mut self.response),
-        }
+        let visible = match visible_pairs(&self.view_pairs, self.matching) {
+            // A whole view's pairs at this scale, over the query's.
+            Some(p) if pairs > 0 => Some((
+                p,
+                self.extractor.pair_rate(scale) / self.rate_at_training / pairs as f32,
+            )),
+            _ => None,
+        };
+        match_views(&self.db, visible, &self.histogram, &mut self.response);
         if pairs > 0
             && scale > 0.0
             && let Some(layouts) = &self.view_layouts
         {
             // Views whose colours sit elsewhere match less: what tells
             // apart the turns of an object the histogram sees alike.
-            acch_core::layout_into(image, mask, roi, &mut self.layout);
+            if layout == Layout::Measure {
+                acch_core::layout_into(image, mask, roi, &mut self.measured_layout);
+            }
+            self.layout.copy_from_slice(&self.measured_layout);
             acch_core::scale_layout(&mut self.layout, 1.0 / scale);
             acch_core::unroll_layout(&mut self.layout, self.last_roll_deg);
-            let per_view = self.layout.len();
-            for ((r, l), v) in self
-                .response
-                .iter_mut()
-                .zip(layouts.chunks_exact(per_view))
-                .zip(self.db.views())
-            {
-                let d = acch_core::layout_distance(&self.layout, l) / v.size_px.max(1.0);
-                *r = (*r - LAYOUT_WEIGHT * d).max(0.0);
-            }
+            penalise_layouts(&self.db, layouts, &self.layout, &mut self.response);
         }
         pairs
+    }
+
+    /// The response a clean query that is training view `a` itself would
+    /// get (its histogram and layout as trained, at the training scale,
+    /// upright) into `out`: how alike the database's own views are, so how
+    /// far any estimate from it could tell view `a` from each other view.
+    ///
+    /// # Panics
+    /// When `a` is not a view or `out` is not one value per view.
+    pub fn respond_to_view(&self, a: usize, out: &mut [f32]) {
+        let visible = visible_pairs(&self.view_pairs, self.matching).map(|p| (p, 1.0 / p[a]));
+        match_views(&self.db, visible, self.db.histogram(a), out);
+        if let Some(layouts) = &self.view_layouts {
+            let per_view = self.layout.len();
+            let own = &layouts[a * per_view..(a + 1) * per_view];
+            penalise_layouts(&self.db, layouts, own, out);
+        }
     }
 
     /// Estimates the pose of the masked object in `roi`. `scale` is the
@@ -459,7 +531,7 @@ impl PoseEstimator {
                 // its own training size gives a better scale.
                 let s1 = size / self.db.views()[best].size_px;
                 if (s1 / s0 - 1.0).abs() > 0.05 {
-                    self.respond(image, mask, roi, s1);
+                    self.respond_at(image, mask, roi, s1, Layout::Reuse);
                     (s1, self.best())
                 } else {
                     (s0, best)
@@ -794,20 +866,28 @@ mod tests {
         (rgb, mask)
     }
 
-    #[test]
-    fn a_lid_seen_from_above_is_told_apart_turned_by_its_layout() {
-        let turns: Vec<f32> = (0..12).map(|k| k as f32 * 30.0).collect();
-        let lids: Vec<_> = turns.iter().map(|&d| lid(d)).collect();
-        let views: Vec<_> = lids
+    /// Twelve turns of [`lid`] (every 30°) from above, and `more` views,
+    /// trained with four colours.
+    fn lids_database(more: &[train::LabelledView]) -> ViewDatabase {
+        let lids: Vec<_> = (0..12).map(|k| lid(k as f32 * 30.0)).collect();
+        let mut views: Vec<_> = lids
             .iter()
-            .zip(&turns)
-            .map(|((rgb, mask), &d)| train::LabelledView::new(rgb, mask, (80, 80), (90.0, d), 1.0))
+            .enumerate()
+            .map(|(k, (rgb, mask))| {
+                train::LabelledView::new(rgb, mask, (80, 80), (90.0, k as f32 * 30.0), 1.0)
+            })
             .collect();
+        views.extend_from_slice(more);
         let config = train::TrainConfig {
             colours: 4,
             ..train::TrainConfig::default()
         };
-        let db = train::build_database("lid", 1.0, &views, &config).unwrap();
+        train::build_database("lid", 1.0, &views, &config).unwrap()
+    }
+
+    #[test]
+    fn a_lid_seen_from_above_is_told_apart_turned_by_its_layout() {
+        let db = lids_database(&[]);
         assert!(view_layouts(&db).is_some(), "training records the layouts");
         let mut histogram_alone = db.clone();
         histogram_alone.sections.remove(VIEW_LAYOUTS_SECTION);
@@ -844,6 +924,93 @@ mod tests {
         let (phi, margin) = top2(&db);
         assert_eq!(phi, 120.0);
         assert!(margin > 0.01, "the layout sets the turn apart: {margin}");
+    }
+
+    #[test]
+    fn a_view_as_its_own_query_is_rated_as_its_training_image_would_be() {
+        let db = lids_database(&[]);
+        let mut own = vec![0.0; db.views().len()];
+        PoseEstimator::new(db.clone())
+            .unwrap()
+            .respond_to_view(4, &mut own);
+        let (rgb, mask) = lid(120.0);
+        let index = db.palette.quantise(&rgb, 80, 80);
+        let roi = train::mask_bbox(&mask, 80, 80).unwrap();
+        let mut seen = PoseEstimator::new(db.clone()).unwrap();
+        seen.respond(&index, Some(&mask), roi, 1.0);
+        for (i, (a, b)) in own.iter().zip(seen.response()).enumerate() {
+            assert!((a - b).abs() < 1e-4, "view {i}: {a} as trained, {b} seen");
+        }
+        assert!(
+            (own[4] - 1.0).abs() < 1e-4,
+            "a view holds itself: {}",
+            own[4]
+        );
+        let runner_up = |r: &[f32]| {
+            r.iter()
+                .enumerate()
+                .filter(|&(i, _)| i != 4)
+                .map(|(_, &v)| v)
+                .fold(0f32, f32::max)
+        };
+        assert!(
+            runner_up(&own) < own[4] - 0.01,
+            "the layout tells the turns apart"
+        );
+        let mut histogram_alone = db;
+        histogram_alone.sections.remove(VIEW_LAYOUTS_SECTION);
+        PoseEstimator::new(histogram_alone)
+            .unwrap()
+            .respond_to_view(4, &mut own);
+        assert!(
+            runner_up(&own) > own[4] - 0.01,
+            "the histograms alone do not"
+        );
+    }
+
+    #[test]
+    fn a_refined_scale_matches_the_layout_as_a_fresh_measurement_would() {
+        // Lids at θ = 90 and, at θ = 80, more views of a smaller yellow
+        // disc: the median view is small, so a lid's first scale is off
+        // and refined against the lid view chosen.
+        let disc: Vec<u8> = (0..80 * 80)
+            .flat_map(|i| {
+                let (x, y) = ((i % 80) as f32 - 39.5, (i / 80) as f32 - 39.5);
+                if x * x + y * y <= 400.0 {
+                    [230, 200, 40]
+                } else {
+                    [128, 128, 128]
+                }
+            })
+            .collect();
+        let disc_mask: Vec<u8> = disc
+            .chunks_exact(3)
+            .map(|p| if p[0] == 230 { 255 } else { 0 })
+            .collect();
+        let discs: Vec<_> = (0..13)
+            .map(|k| {
+                let phi = k as f32 * 27.0;
+                train::LabelledView::new(&disc, &disc_mask, (80, 80), (80.0, phi), 1.0)
+            })
+            .collect();
+        let db = lids_database(&discs);
+        let (rgb, mask) = lid(120.0);
+        let index = db.palette.quantise(&rgb, 80, 80);
+        let roi = train::mask_bbox(&mask, 80, 80).unwrap();
+        let mut refined = PoseEstimator::new(db.clone()).unwrap();
+        let est = refined
+            .estimate(&index, Some(&mask), roi, None, Refinement::WinnerTakesAll)
+            .unwrap();
+        let first = object_size(&index, Some(&mask), roi) / db.median_size_px();
+        assert!(
+            (est.scale / first - 1.0).abs() > 0.05,
+            "the scale is refined: {first} -> {}",
+            est.scale
+        );
+        assert_eq!(est.phi_deg, 120.0);
+        let mut fresh = PoseEstimator::new(db).unwrap();
+        fresh.respond(&index, Some(&mask), roi, est.scale);
+        assert_eq!(refined.response(), fresh.response());
     }
 
     #[test]
