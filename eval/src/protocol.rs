@@ -383,6 +383,36 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_nearest_view_wraps_in_phi_and_weighs_theta_and_phi_alike() {
+        use acch_core::{ColourSpace, HistogramParams, Palette, View};
+        let palette =
+            Palette::from_centres(ColourSpace::Lab, vec![[50.0, 0.0, 0.0]], 10.0).expect("palette");
+        let params = HistogramParams {
+            colours: 1,
+            bins: 2,
+            ..HistogramParams::default()
+        };
+        let mut db = ViewDatabase::new("grid", palette, params, 1.0);
+        let h = vec![1.0 / params.len() as f32; params.len()];
+        for theta_deg in [45.0, 60.0, 90.0] {
+            for phi_deg in [0.0, 90.0, 180.0, 270.0] {
+                let view = View {
+                    theta_deg,
+                    phi_deg,
+                    size_px: 100.0,
+                    centre_offset_px: [0.0; 2],
+                };
+                db.push_view(view, &h);
+            }
+        }
+        let at = |i: usize| (db.views()[i].theta_deg, db.views()[i].phi_deg);
+        assert_eq!(at(nearest_view(&db, (50.0, 350.0))), (45.0, 0.0));
+        assert_eq!(at(nearest_view(&db, (56.0, 100.0))), (60.0, 90.0));
+        // 12° and 40° away (90°, 180°) before 18° and 40° (60°, 180°).
+        assert_eq!(at(nearest_view(&db, (78.0, 220.0))), (90.0, 180.0));
+    }
+
+    #[test]
     fn the_rule_fails_beyond_ten_degrees_of_theta_or_twenty_of_phi() {
         assert!(!fails((60.0, 10.0), (70.0, 30.0)));
         assert!(fails((60.0, 10.0), (70.1, 10.0)));
