@@ -151,7 +151,7 @@ fn match_views(db: &ViewDatabase, visible: Option<(&[f32], f32)>, query: &[f32],
 
 /// Each view's pairs at the training scale (`view_pairs`, recorded by the
 /// database) when `matching` matches the views by their visible part.
-fn visible_pairs(view_pairs: &Option<Vec<f32>>, matching: Matching) -> Option<&[f32]> {
+fn visible_pairs(view_pairs: Option<&[f32]>, matching: Matching) -> Option<&[f32]> {
     match (view_pairs, matching) {
         (Some(pairs), Matching::Visible) => Some(pairs),
         _ => None,
@@ -454,7 +454,7 @@ impl PoseEstimator {
                 self.histogram.copy_from_slice(&search.rolled);
             }
         }
-        let visible = match visible_pairs(&self.view_pairs, self.matching) {
+        let visible = match visible_pairs(self.view_pairs.as_deref(), self.matching) {
             // A whole view's pairs at this scale, over the query's.
             Some(p) if pairs > 0 => Some((
                 p,
@@ -488,7 +488,9 @@ impl PoseEstimator {
     /// # Panics
     /// When `a` is not a view or `out` is not one value per view.
     pub fn respond_to_view(&self, a: usize, out: &mut [f32]) {
-        let visible = visible_pairs(&self.view_pairs, self.matching).map(|p| (p, 1.0 / p[a]));
+        assert_eq!(out.len(), self.db.views().len(), "response length");
+        let visible =
+            visible_pairs(self.view_pairs.as_deref(), self.matching).map(|p| (p, 1.0 / p[a]));
         match_views(&self.db, visible, self.db.histogram(a), out);
         if let Some(layouts) = &self.view_layouts {
             let per_view = self.layout.len();
