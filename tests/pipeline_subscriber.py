@@ -79,10 +79,13 @@ def main():
         margin, value = r.get("detection_margin"), r.get("match_value")
         faint = (margin is not None and margin < MIN_CLEAR_DETECTION_MARGIN
                  and (value is None or not value >= MIN_CLEAR_MATCH_VALUE))
+        plateau, limit = r.get("phi_plateau_deg"), r.get("phi_plateau_limit_deg")
+        broad = plateau is not None and limit is not None and not plateau < limit
         if r["accepted"]:
             ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
                   and conf >= thr and r.get("rival") is not None
                   and r.get("max_rival") is not None and r["rival"] <= r["max_rival"]
+                  and plateau is not None and limit is not None and not broad
                   and not faint and r.get("faint") is False
                   and r.get("seed") is not None and seq in seeds)
         elif r.get("rating") == "rejected":
@@ -90,7 +93,7 @@ def main():
             rival, max_rival = r.get("rival"), r.get("max_rival")
             ok = (conf is not None and thr is not None
                   and (conf < thr or (rival is not None and max_rival is not None
-                                      and rival > max_rival) or faint)
+                                      and rival > max_rival) or broad or faint)
                   and r.get("faint") is faint
                   and r.get("seed") is None and seq not in seeds)
         else:

@@ -170,6 +170,10 @@ pub struct ImageOutcome {
     /// The best match beyond 20° of the estimate's azimuth over the best
     /// ([`acch_confidence::rival_ratio`]); None: not found.
     pub rival: Option<f32>,
+    /// The span in azimuth of the views about the estimate that match
+    /// nearly as well ([`acch_confidence::phi_plateau_deg`]); None: not
+    /// rated.
+    pub phi_plateau_deg: Option<f32>,
     /// How the training view nearest the truth, as a query, rates the view
     /// the estimate chose ([`acch_pose::PoseEstimator::respond_to_view`],
     /// sharp database): 1 for the same view; at or above
@@ -438,6 +442,7 @@ fn measure(
                     match_value: posed.map(|e| e.best_value),
                     confidence: verdict.map(|v| v.confidence),
                     rival,
+                    phi_plateau_deg: verdict.map(|v| v.phi_plateau_deg),
                     score_margin: out.detection().done().map(|w| w.margin()),
                     quality,
                     set: out.envelope().imaging.set,
@@ -727,7 +732,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3},{},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -752,6 +757,7 @@ impl RobustReport {
                     o.set.name(),
                     o.object_sharpness,
                     opt(o.look_alike),
+                    opt(o.phi_plateau_deg),
                 );
             }
         }
@@ -851,7 +857,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness,look_alike\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness,look_alike,phi_plateau_deg\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

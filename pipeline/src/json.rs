@@ -136,8 +136,8 @@ pub struct ResultJson<'a> {
     /// Frame number.
     pub sequence: u64,
     /// Whether a pose is reported: estimated, accepted by the confidence
-    /// stage (rated at or above the threshold, no close rival, not
-    /// faint), seeded. What a robot acts on.
+    /// stage (rated at or above the threshold, no close rival, no broad
+    /// crest in azimuth, not faint), seeded. What a robot acts on.
     pub accepted: bool,
     /// The confidence stage's verdict: accepted, rejected, unrated (the
     /// database has no network), skipped (nothing estimated) or failed.
@@ -152,6 +152,13 @@ pub struct ResultJson<'a> {
     pub rival: Option<f32>,
     /// The largest rival accepted, when rated.
     pub max_rival: Option<f32>,
+    /// The span in azimuth of the views about the estimate that match
+    /// within 2 % of it, degrees, when rated: at or above
+    /// `phi_plateau_limit_deg` the estimate is rejected, whatever its
+    /// confidence (the truth may lie farther away than the tolerance).
+    pub phi_plateau_deg: Option<f32>,
+    /// The narrowest plateau rejected, when rated.
+    pub phi_plateau_limit_deg: Option<f32>,
     /// Recognition's score for the object's window over its threshold,
     /// when rated and the region was found by recognition.
     pub detection_margin: Option<f32>,
@@ -264,6 +271,8 @@ impl<'a> ResultJson<'a> {
             threshold: verdict.map(|v| v.threshold),
             rival: verdict.map(|v| v.rival),
             max_rival: verdict.map(|v| v.max_rival),
+            phi_plateau_deg: verdict.map(|v| v.phi_plateau_deg),
+            phi_plateau_limit_deg: verdict.map(|v| v.phi_plateau_limit_deg),
             detection_margin: verdict
                 .map(|v| v.detection_margin)
                 .filter(|m| m.is_finite()),

@@ -64,11 +64,16 @@ pub struct Outcomes {
     pub estimated: u64,
     /// Accepted by the confidence stage and seeded: what a robot acts on.
     pub accepted: u64,
-    /// Rated but not accepted: below the threshold, ambiguous or faint.
+    /// Rated but not accepted: below the threshold, ambiguous, on a broad
+    /// crest or faint.
     pub rejected: u64,
     /// Of the rejected, those with a far view matching nearly as well
     /// ([`crate::stages::Verdict::ambiguous`]), whatever their rating.
     pub rejected_ambiguous: u64,
+    /// Of the rejected, those whose neighbours in azimuth match nearly as
+    /// well over 40° or more ([`crate::stages::Verdict::broad`]), whatever
+    /// their rating.
+    pub rejected_broad: u64,
     /// Of the rejected, those found faintly and matched weakly
     /// ([`crate::stages::Verdict::faint`]): the object may not be in view.
     pub rejected_faint: u64,
@@ -140,6 +145,7 @@ impl Outcomes {
                 Rating::Rated(v) if !v.accepted => {
                     o.rejected += 1;
                     o.rejected_ambiguous += v.ambiguous() as u64;
+                    o.rejected_broad += v.broad() as u64;
                     o.rejected_faint += v.faint() as u64;
                 }
                 Rating::Unrated => o.unrated_estimates += 1,
@@ -289,6 +295,7 @@ mod tests {
             let evidence = Evidence {
                 confidence,
                 rival: 0.0,
+                phi_plateau_deg: 0.0,
                 detection_margin: f32::INFINITY,
                 match_value: 1.0,
             };
@@ -308,6 +315,7 @@ mod tests {
             let evidence = Evidence {
                 confidence: v.confidence,
                 rival: v.rival,
+                phi_plateau_deg: v.phi_plateau_deg,
                 detection_margin: 1.1,
                 match_value: 0.5,
             };

@@ -1,5 +1,6 @@
 //! Accepted means rated at or above the threshold with no far view
-//! matching nearly as well, not both faintly detected and weakly matched,
+//! matching nearly as well, no broad crest in azimuth about the estimate,
+//! not both faintly detected and weakly matched,
 //! and nothing else: a database without a confidence network is refused
 //! unless the run is explicitly unrated (and then nothing is accepted),
 //! and a response the network cannot rate is a counted fault, never an
@@ -113,6 +114,41 @@ fn a_database_without_a_network_is_refused_unless_the_run_is_unrated() {
 }
 
 #[test]
+fn the_stage_rejects_an_estimate_on_a_broad_crest_in_azimuth() {
+    let db = database(true);
+    // Slices of 12 views, 30° apart: the best at θ 50°, φ 90°.
+    let views = db.views();
+    let best = views
+        .iter()
+        .position(|v| v.theta_deg == 50.0 && v.phi_deg == 90.0)
+        .expect("the grid's view");
+    let rate = |neighbours: f32| {
+        let mut response = vec![0.3f32; views.len()];
+        response[best] = 0.9;
+        response[best - 1] = neighbours;
+        response[best + 1] = neighbours;
+        let bytes: Vec<u8> = response.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
+        let mut counters = StageCounters::new(StageId::Confidence);
+        let rated = step(&mut confidence, &posed(), &bytes, &mut [], 0, &mut counters);
+        assert_eq!(counters.total_faults(), 0);
+        rated.rating.verdict().expect("rated")
+    };
+    // φ 60° and 120° within 2 % of the best: a crest 60° wide.
+    let crest = rate(0.89);
+    assert_eq!(crest.phi_plateau_deg, 60.0);
+    assert!(crest.broad() && !crest.accepted, "{crest:?}");
+    // The same neighbours well below the best: a peak.
+    let peak = rate(0.6);
+    assert_eq!(peak.phi_plateau_deg, 0.0);
+    assert!(!peak.broad(), "{peak:?}");
+    assert_eq!(
+        peak.accepted,
+        peak.confidence >= peak.threshold && peak.rival <= peak.max_rival && !peak.faint()
+    );
+}
+
+#[test]
 fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
     let db = database(true);
     let views = db.views().len();
@@ -137,6 +173,7 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
         verdict.accepted,
         verdict.confidence >= verdict.threshold
             && verdict.rival <= verdict.max_rival
+            && verdict.phi_plateau_deg < verdict.phi_plateau_limit_deg
             && !verdict.faint()
     );
     assert_eq!(counters.total_faults(), 0);

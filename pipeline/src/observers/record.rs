@@ -200,6 +200,11 @@ impl Observe for Recording {
                 v.threshold,
                 if v.ambiguous() {
                     format!(", rival {:.3} > {:.3}", v.rival, v.max_rival)
+                } else if v.broad() {
+                    format!(
+                        ", crest {:.0}° ≥ {:.0}° in φ",
+                        v.phi_plateau_deg, v.phi_plateau_limit_deg
+                    )
                 } else if v.faint() {
                     format!(
                         ", faint: detection {:.2}x, match {:.2}",

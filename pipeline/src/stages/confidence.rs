@@ -1,8 +1,10 @@
 //! Confidence: the database's network rates the pose stage's response; an
 //! estimate is accepted only when it is rated at or above the threshold,
 //! no view far from it in azimuth matches nearly as well (its rival at
-//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), and it is not
-//! both faintly detected and weakly matched
+//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), the views about
+//! it do not match nearly as well over a broad crest in azimuth (their
+//! plateau under [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), and it is
+//! not both faintly detected and weakly matched
 //! ([`acch_confidence::faint_and_weak`]).
 //!
 //! A database without a network is refused unless the run is explicitly
@@ -27,6 +29,9 @@ pub struct Evidence {
     /// The best match beyond 20° of the estimate's azimuth over the best
     /// ([`acch_confidence::rival_ratio`]).
     pub rival: f32,
+    /// The span in azimuth of the views about the estimate that match
+    /// nearly as well, degrees ([`acch_confidence::phi_plateau_deg`]).
+    pub phi_plateau_deg: f32,
     /// Recognition's score for the object's window over its threshold;
     /// infinity for a region recognition did not find (a given mask).
     pub detection_margin: f32,
@@ -48,30 +53,40 @@ pub struct Verdict {
     pub rival: f32,
     /// The largest rival accepted.
     pub max_rival: f32,
+    /// The span in azimuth of the views about the estimate that match
+    /// within [`acch_confidence::PLATEAU_RATIO`] of it, degrees.
+    pub phi_plateau_deg: f32,
+    /// A plateau this broad or broader is rejected
+    /// ([`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]).
+    pub phi_plateau_limit_deg: f32,
     /// Recognition's score over its threshold (infinity: a given mask).
     pub detection_margin: f32,
     /// The best view's match value.
     pub match_value: f32,
     /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
-    /// rejected) and not [`faint`](Self::faint).
+    /// rejected), not [`broad`](Self::broad) and not
+    /// [`faint`](Self::faint).
     pub accepted: bool,
 }
 
 impl Verdict {
     /// The verdict on `evidence`: its confidence against `threshold`, its
-    /// rival against `max_rival`, its detection margin and match value
-    /// against [`acch_confidence::faint_and_weak`].
+    /// rival against `max_rival`, its plateau against
+    /// [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`], its detection margin
+    /// and match value against [`acch_confidence::faint_and_weak`].
     pub fn new(evidence: Evidence, threshold: f32, max_rival: f32) -> Self {
         let mut v = Verdict {
             confidence: evidence.confidence,
             threshold,
             rival: evidence.rival,
             max_rival,
+            phi_plateau_deg: evidence.phi_plateau_deg,
+            phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
             detection_margin: evidence.detection_margin,
             match_value: evidence.match_value,
             accepted: false,
         };
-        v.accepted = evidence.confidence >= threshold && !v.ambiguous() && !v.faint();
+        v.accepted = evidence.confidence >= threshold && !v.ambiguous() && !v.broad() && !v.faint();
         v
     }
 
@@ -81,6 +96,19 @@ impl Verdict {
         use std::cmp::Ordering::{Equal, Less};
         // A NaN rival is ambiguous too.
         !matches!(self.rival.partial_cmp(&self.max_rival), Some(Less | Equal))
+    }
+
+    /// Whether the views about the estimate match nearly as well over a
+    /// crest too broad to place it within the tolerance (rejected for it,
+    /// whatever the confidence).
+    pub fn broad(&self) -> bool {
+        use std::cmp::Ordering::Less;
+        // A NaN plateau is broad too.
+        !matches!(
+            self.phi_plateau_deg
+                .partial_cmp(&self.phi_plateau_limit_deg),
+            Some(Less)
+        )
     }
 
     /// Whether the object was found only faintly and matched weakly
@@ -249,9 +277,17 @@ impl Stage for Confidence {
             model.feature_params().min_phi_separation_deg,
         )
         .map_err(|_| Fault::Response)?;
+        let phi_plateau_deg = acch_confidence::phi_plateau_deg(
+            &self.response,
+            &self.slices,
+            &self.views,
+            acch_confidence::PLATEAU_RATIO,
+        )
+        .map_err(|_| Fault::Response)?;
         let evidence = Evidence {
             confidence,
             rival,
+            phi_plateau_deg,
             detection_margin: input
                 .segmented
                 .recognised
@@ -284,6 +320,7 @@ mod tests {
         Evidence {
             confidence,
             rival,
+            phi_plateau_deg: 0.0,
             detection_margin: f32::INFINITY,
             match_value: 0.9,
         }
@@ -335,5 +372,31 @@ mod tests {
         assert!(judged(2.0, 0.5).accepted, "a clear detection");
         assert!(judged(f32::INFINITY, 0.3).accepted, "a given mask");
         assert!(!judged(1.1, f32::NAN).accepted, "no match value");
+    }
+
+    #[test]
+    fn a_broad_crest_in_azimuth_is_rejected_whatever_its_rating() {
+        let judged = |phi_plateau_deg| {
+            Verdict::new(
+                Evidence {
+                    phi_plateau_deg,
+                    ..clear(1.0, 0.5)
+                },
+                0.8,
+                0.99,
+            )
+        };
+        for narrow in [0.0, 30.0, 39.9] {
+            let v = judged(narrow);
+            assert!(v.accepted && !v.broad(), "{v:?}");
+        }
+        for broad in [40.0, 360.0, f32::NAN] {
+            let v = judged(broad);
+            assert!(
+                v.broad() && !v.accepted && !v.ambiguous() && !v.faint(),
+                "{v:?}"
+            );
+            assert_eq!(Rating::Rated(v).state(), "rejected");
+        }
     }
 }

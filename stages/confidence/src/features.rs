@@ -104,14 +104,7 @@ impl Features {
         params: &FeatureParams,
     ) -> Result<Features, ConfidenceError> {
         params.validate()?;
-        let (best, g) = scan_with_views(response, views)?;
-        check_slices(slices, response.len())?;
-        let s_star = slices
-            .iter()
-            .position(|s| (s.start..s.start + s.len).contains(&best))
-            .ok_or(ConfidenceError::BadSlices(
-                "no slice holds the global maximum",
-            ))?;
+        let (best, g, s_star) = scan_with_slices(response, slices, views)?;
         let ratio = |v: f32| {
             if g > 0.0 {
                 (v / g).clamp(0.0, 1.0)
@@ -269,6 +262,59 @@ pub fn rival_ratio(
     Ok(rival.map_or(0.0, |v| normalised(v, g)))
 }
 
+/// How far in azimuth the best match holds: the span, degrees, of the run
+/// of views about the best view, in its θ slice and in order of azimuth
+/// (around the circle), that match at least `ratio` of the best; 0 when
+/// its neighbours on both sides match less, 360 when the whole slice
+/// matches so. The truth may lie anywhere on such a plateau: one that
+/// spans twice the failure tolerance in φ cannot place the object within
+/// it, however sharply the response falls off beyond. A view at the best
+/// view's own azimuth (a duplicate) neither extends nor ends it. Walks the
+/// slice without sorting it: allocates nothing (O(n²) in the slice's
+/// views).
+///
+/// Errors as [`Features::compute`] does for the response, the views and
+/// the slices, and when `ratio` is not in (0, 1].
+pub fn phi_plateau_deg(
+    response: &[f32],
+    slices: &[Slice],
+    views: &[View],
+    ratio: f32,
+) -> Result<f32, ConfidenceError> {
+    if !(ratio > 0.0 && ratio <= 1.0) {
+        return Err(ConfidenceError::InvalidConfig(format!(
+            "the plateau's share of the best match must be in (0, 1], got {ratio}"
+        )));
+    }
+    let (best, g, s_star) = scan_with_slices(response, slices, views)?;
+    let run = slices[s_star].start..slices[s_star].start + slices[s_star].len;
+    if let Some(index) = run.clone().find(|&j| !views[j].phi_deg.is_finite()) {
+        return Err(ConfidenceError::InvalidView { index });
+    }
+    let phi0 = views[best].phi_deg;
+    let floor = ratio * g;
+    let mut span = 0.0;
+    for turn in [1.0f32, -1.0] {
+        // Azimuth from the best view, turning one way, in (0, 360).
+        let offset = |j: usize| (turn * (views[j].phi_deg - phi0)).rem_euclid(360.0);
+        let mut edge = 0.0;
+        loop {
+            let next = run
+                .clone()
+                .filter(|&j| offset(j) > edge)
+                .min_by(|&a, &b| offset(a).total_cmp(&offset(b)));
+            match next {
+                // Around the circle: the whole slice matches.
+                None => return Ok(360.0),
+                Some(j) if response[j] >= floor => edge = offset(j),
+                Some(_) => break,
+            }
+        }
+        span += edge;
+    }
+    Ok(span.min(360.0))
+}
+
 /// [`scan_response`] of a response that must have a value per view.
 fn scan_with_views(response: &[f32], views: &[View]) -> Result<(usize, f32), ConfidenceError> {
     let best = scan_response(response)?;
@@ -280,6 +326,24 @@ fn scan_with_views(response: &[f32], views: &[View]) -> Result<(usize, f32), Con
         });
     }
     Ok(best)
+}
+
+/// [`scan_with_views`] of a response split into `slices`, and the index of
+/// the slice that holds its maximum.
+fn scan_with_slices(
+    response: &[f32],
+    slices: &[Slice],
+    views: &[View],
+) -> Result<(usize, f32, usize), ConfidenceError> {
+    let (best, g) = scan_with_views(response, views)?;
+    check_slices(slices, response.len())?;
+    let slice = slices
+        .iter()
+        .position(|s| (s.start..s.start + s.len).contains(&best))
+        .ok_or(ConfidenceError::BadSlices(
+            "no slice holds the global maximum",
+        ))?;
+    Ok((best, g, slice))
 }
 
 /// Checks that the slices cover `0..n` contiguously, in order, each
@@ -400,6 +464,48 @@ pub(crate) mod tests {
         assert!(rival_ratio(&r, &views, 179.9).unwrap() < 0.5);
         assert!(rival_ratio(&r, &views[1..], 20.0).is_err());
         assert!(rival_ratio(&r, &views, 180.0).is_err());
+    }
+
+    #[test]
+    fn the_plateau_is_the_run_of_views_about_the_best_that_match_nearly_as_well() {
+        let (slices, views) = grid(&THETAS, 36);
+        let plateau = |r: &[f32]| phi_plateau_deg(r, &slices, &views, 0.98).unwrap();
+        let mut r = vec![0.2; views.len()];
+        r[4 * 36 + 1] = 0.9; // θ = 80°, φ = 10°: the best.
+        assert_eq!(plateau(&r), 0.0);
+        // Neighbours at 0° and 20° within 2 %, 350° just outside it; a view
+        // beyond a gap (40°) or in another slice does not extend the run.
+        r[4 * 36] = 0.885;
+        r[4 * 36 + 2] = 0.883;
+        r[4 * 36 + 35] = 0.881;
+        r[4 * 36 + 4] = 0.899;
+        r[3 * 36 + 3] = 0.899;
+        assert_eq!(plateau(&r), 20.0);
+        // Across 0°: 350° joins, and 340° beyond it.
+        r[4 * 36 + 35] = 0.89;
+        r[4 * 36 + 34] = 0.89;
+        assert_eq!(plateau(&r), 40.0);
+        assert_eq!(phi_plateau_deg(&r, &slices, &views, 0.995).unwrap(), 0.0);
+        // The whole slice.
+        r[4 * 36..5 * 36].fill(0.89);
+        r[4 * 36 + 1] = 0.9;
+        assert_eq!(plateau(&r), 360.0);
+        // A duplicate of the best view's azimuth neither ends nor extends it.
+        let mut twice = views.clone();
+        twice[4 * 36 + 3].phi_deg = 10.0;
+        let mut r = vec![0.2; views.len()];
+        r[4 * 36 + 1] = 0.9;
+        r[4 * 36 + 2] = 0.89;
+        assert_eq!(phi_plateau_deg(&r, &slices, &twice, 0.98).unwrap(), 10.0);
+        // Bad inputs are refused.
+        for ratio in [0.0, 1.01, f32::NAN] {
+            assert!(phi_plateau_deg(&r, &slices, &views, ratio).is_err());
+        }
+        assert!(phi_plateau_deg(&r, &slices, &views[1..], 0.98).is_err());
+        assert!(phi_plateau_deg(&r, &slices[1..], &views, 0.98).is_err());
+        let mut nan = views.clone();
+        nan[4 * 36 + 7].phi_deg = f32::NAN;
+        assert!(phi_plateau_deg(&r, &slices, &nan, 0.98).is_err());
     }
 
     #[test]

@@ -29,7 +29,7 @@ mod network;
 pub use eval::{Acceptance, Bin, expected_calibration_error, reliability_bins, roc_auc};
 pub use features::{
     DEFAULT_MIN_PHI_SEPARATION_DEG, FEATURE_COUNT, FeatureParams, Features, ResponseFeatures,
-    normalise_into, rival_ratio,
+    normalise_into, phi_plateau_deg, rival_ratio,
 };
 pub use model::{
     ClassWeighting, Kind, MAX_HIDDEN, MODEL_FORMAT_VERSION, Model, TrainConfig, train,
@@ -48,6 +48,20 @@ pub const DEFAULT_THRESHOLD: f32 = 0.8;
 /// that match as well"); the network, trained on few such scenes, accepted
 /// them.
 pub const MAX_RIVAL_RATIO: f32 = 0.99;
+
+/// The share of the best match the views about it must reach to extend
+/// its plateau in azimuth ([`phi_plateau_deg`]).
+pub const PLATEAU_RATIO: f32 = 0.98;
+
+/// An estimate is rejected, whatever the network says, when the views
+/// about it in its θ slice that match within [`PLATEAU_RATIO`] of the best
+/// span this many degrees of azimuth or more ([`phi_plateau_deg`]): twice
+/// the 20° failure tolerance, so the truth may lie farther from the
+/// estimate than the tolerance and the response cannot say. Seen from the
+/// side, a blurred or partly hidden object often matches so over a broad
+/// crest (docs/accuracy.md, "A broad crest in azimuth"); the rival, which
+/// looks only beyond 20°, and the network missed those.
+pub const PHI_PLATEAU_LIMIT_DEG: f32 = 40.0;
 
 /// A detection that clears recognition's threshold by less than this
 /// factor is faint ([`faint_and_weak`]).

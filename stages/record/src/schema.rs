@@ -153,6 +153,8 @@ pub const RESULT_SCHEMA: &str = r#"{
     "threshold": {"type": "number", "description": "null when not rated"},
     "rival": {"type": "number", "description": "best match beyond 20 degrees of the estimate's azimuth over the best; above max_rival rejected as ambiguous; null when not rated"},
     "max_rival": {"type": "number", "description": "null when not rated"},
+    "phi_plateau_deg": {"type": "number", "description": "span in azimuth of the views about the estimate, in its elevation, that match within 2 % of the best, degrees; at or above phi_plateau_limit_deg rejected (the truth may lie farther than the 20 degree tolerance); null when not rated"},
+    "phi_plateau_limit_deg": {"type": "number", "description": "null when not rated"},
     "detection_margin": {"type": "number", "description": "recognition's score for the window over its threshold; null when not rated or the region was not found by recognition"},
     "match_value": {"type": "number", "description": "the best view's match value; null when not rated"},
     "faint": {"type": "boolean", "description": "rejected as faint: detection_margin below 1.3 and match_value below 0.75, whatever the confidence; null when not rated"},
