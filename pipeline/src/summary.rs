@@ -299,7 +299,7 @@ mod tests {
                 detection_margin: f32::INFINITY,
                 match_value: 1.0,
             };
-            let v = Verdict::new(evidence, 0.8, 1.0);
+            let v = Verdict::new(evidence, 0.8, 1.0, f32::INFINITY);
             m.rated.rating = Rating::Rated(v);
             if v.accepted {
                 m.seeding.seed = Outcome::Done(Default::default());
@@ -319,7 +319,12 @@ mod tests {
                 detection_margin: 1.1,
                 match_value: 0.5,
             };
-            m.rated.rating = Rating::Rated(Verdict::new(evidence, v.threshold, v.max_rival));
+            m.rated.rating = Rating::Rated(Verdict::new(
+                evidence,
+                v.threshold,
+                v.max_rival,
+                v.phi_plateau_limit_deg,
+            ));
             m.seeding.seed = Outcome::Skipped;
         }
         m

@@ -72,16 +72,22 @@ pub struct Verdict {
 impl Verdict {
     /// The verdict on `evidence`: its confidence against `threshold`, its
     /// rival against `max_rival`, its plateau against
-    /// [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`], its detection margin
+    /// `phi_plateau_limit_deg` (by default
+    /// [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), its detection margin
     /// and match value against [`acch_confidence::faint_and_weak`].
-    pub fn new(evidence: Evidence, threshold: f32, max_rival: f32) -> Self {
+    pub fn new(
+        evidence: Evidence,
+        threshold: f32,
+        max_rival: f32,
+        phi_plateau_limit_deg: f32,
+    ) -> Self {
         let mut v = Verdict {
             confidence: evidence.confidence,
             threshold,
             rival: evidence.rival,
             max_rival,
             phi_plateau_deg: evidence.phi_plateau_deg,
-            phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
+            phi_plateau_limit_deg,
             detection_margin: evidence.detection_margin,
             match_value: evidence.match_value,
             accepted: false,
@@ -197,6 +203,7 @@ pub struct Confidence {
     views: Vec<View>,
     response: Vec<f32>,
     max_rival: f32,
+    phi_plateau_limit_deg: f32,
 }
 
 impl Confidence {
@@ -229,6 +236,7 @@ impl Confidence {
             response: Vec::with_capacity(db.views().len()),
             views: db.views().to_vec(),
             max_rival: acch_confidence::MAX_RIVAL_RATIO,
+            phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
         }
     }
 
@@ -237,6 +245,14 @@ impl Confidence {
     /// every rival: the network alone decides); to measure another bar.
     pub fn accept_rivals_to(&mut self, max_rival: f32) {
         self.max_rival = max_rival;
+    }
+
+    /// Rejects estimates on a crest in azimuth of `limit_deg` or more
+    /// instead of [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`] (infinity:
+    /// no crest is too broad); to measure another limit, or the other
+    /// rules without this one.
+    pub fn reject_crests_from(&mut self, limit_deg: f32) {
+        self.phi_plateau_limit_deg = limit_deg;
     }
 
     /// The network, unless unrated.
@@ -300,6 +316,7 @@ impl Stage for Confidence {
             evidence,
             model.threshold(),
             self.max_rival,
+            self.phi_plateau_limit_deg,
         )))
     }
 
@@ -328,7 +345,7 @@ mod tests {
 
     #[test]
     fn only_a_rating_at_or_above_the_threshold_without_a_close_rival_is_accepted() {
-        let verdict = |confidence, rival| Verdict::new(clear(confidence, rival), 0.8, 0.99);
+        let verdict = |confidence, rival| Verdict::new(clear(confidence, rival), 0.8, 0.99, 40.0);
         assert!(Rating::Rated(verdict(0.8, 0.99)).accepted());
         assert!(!Rating::Rated(verdict(0.79, 0.5)).accepted());
         assert!(!Rating::Rated(verdict(f32::NAN, 0.5)).accepted());
@@ -343,7 +360,7 @@ mod tests {
             assert!(!r.accepted(), "{r:?}");
         }
         assert_eq!(
-            Rating::Rated(Verdict::new(clear(0.1, 0.5), 0.8, 0.99)).state(),
+            Rating::Rated(Verdict::new(clear(0.1, 0.5), 0.8, 0.99, 40.0)).state(),
             "rejected"
         );
         assert_eq!(Rating::Unrated.state(), "unrated");
@@ -360,6 +377,7 @@ mod tests {
                 },
                 0.8,
                 0.99,
+                40.0,
             )
         };
         let faint = judged(1.1, 0.5);
@@ -384,6 +402,7 @@ mod tests {
                 },
                 0.8,
                 0.99,
+                40.0,
             )
         };
         for narrow in [0.0, 30.0, 39.9] {
