@@ -68,10 +68,11 @@ def main():
     accepted = sum(1 for r in results.values() if r["accepted"])
     # Each verdict against its own threshold, from the message alone: an
     # accepted result is rated at or above the threshold, with no rival
-    # above its bar, not both faintly detected and weakly matched, and
-    # seeded (on the seed topic too); a rejected one is rated below it,
-    # has such a rival or is faint, and has no seed, there or on the seed
-    # topic.
+    # above its bar, no broad crest, no view placing its region better
+    # (map rival at most its bar), not both faintly detected and weakly
+    # matched, and seeded (on the seed topic too); a rejected one is rated
+    # below it, has such a rival, crest or placement or is faint, and has
+    # no seed, there or on the seed topic.
     bad_verdicts = []
     rejected = 0
     for seq, r in results.items():
@@ -81,11 +82,21 @@ def main():
                  and (value is None or not value >= MIN_CLEAR_MATCH_VALUE))
         plateau, limit = r.get("phi_plateau_deg"), r.get("phi_plateau_limit_deg")
         broad = plateau is not None and limit is not None and not plateau < limit
+        # A null map rival: nothing weighed (accepted), or not measurable
+        # (rejected): the message's own flag tells which.
+        map_rival, max_map_rival = r.get("map_rival"), r.get("max_map_rival")
+        if map_rival is not None and max_map_rival is not None:
+            misplaced = map_rival > max_map_rival
+            consistent = r.get("misplaced") is misplaced
+        else:
+            misplaced = r.get("misplaced") is True
+            consistent = r.get("misplaced") is not None or conf is None
         if r["accepted"]:
             ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
                   and conf >= thr and r.get("rival") is not None
                   and r.get("max_rival") is not None and r["rival"] <= r["max_rival"]
                   and plateau is not None and limit is not None and not broad
+                  and max_map_rival is not None and not misplaced and consistent
                   and not faint and r.get("faint") is False
                   and r.get("seed") is not None and seq in seeds)
         elif r.get("rating") == "rejected":
@@ -93,8 +104,9 @@ def main():
             rival, max_rival = r.get("rival"), r.get("max_rival")
             ok = (conf is not None and thr is not None
                   and (conf < thr or (rival is not None and max_rival is not None
-                                      and rival > max_rival) or broad or faint)
-                  and r.get("faint") is faint
+                                      and rival > max_rival) or broad or misplaced
+                      or faint)
+                  and consistent and r.get("faint") is faint
                   and r.get("seed") is None and seq not in seeds)
         else:
             ok = r.get("seed") is None and seq not in seeds

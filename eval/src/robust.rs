@@ -174,6 +174,11 @@ pub struct ImageOutcome {
     /// nearly as well ([`acch_confidence::phi_plateau_deg`]); None: not
     /// rated.
     pub phi_plateau_deg: Option<f32>,
+    /// How much more of the region's coloured area a view 20-60° away in
+    /// azimuth holds in place than the estimate's
+    /// ([`acch_pose::PoseEstimator::map_rival`]); None: not rated, or
+    /// nothing weighed.
+    pub map_rival: Option<f32>,
     /// How the training view nearest the truth, as a query, rates the view
     /// the estimate chose ([`acch_pose::PoseEstimator::respond_to_view`],
     /// sharp database): 1 for the same view; at or above
@@ -443,6 +448,7 @@ fn measure(
                     confidence: verdict.map(|v| v.confidence),
                     rival,
                     phi_plateau_deg: verdict.map(|v| v.phi_plateau_deg),
+                    map_rival: verdict.map(|v| v.map_rival).filter(|r| r.is_finite()),
                     score_margin: out.detection().done().map(|w| w.margin()),
                     quality,
                     set: out.envelope().imaging.set,
@@ -732,7 +738,7 @@ impl RobustReport {
                 let e = o.estimate;
                 let _ = writeln!(
                     csv,
-                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3},{},{}",
+                    "{},{},{},{},{},{},{:.3},{:.3},{},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{:.3},{},{},{}",
                     self.object,
                     r.family,
                     r.level,
@@ -758,6 +764,7 @@ impl RobustReport {
                     o.object_sharpness,
                     opt(o.look_alike),
                     opt(o.phi_plateau_deg),
+                    opt(o.map_rival),
                 );
             }
         }
@@ -857,7 +864,7 @@ fn name_salt(name: &str) -> usize {
 /// The images of `reports` as CSV, one line each.
 fn write_errors(path: &Path, reports: &[RobustReport]) -> Result<(), EvalError> {
     let mut csv = String::from(
-        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness,look_alike,phi_plateau_deg\n",
+        "object,family,level,light_search,background,image,theta_deg,phi_deg,est_theta_deg,est_phi_deg,abs_dtheta_deg,abs_dphi_deg,failure,accepted,match_value,confidence,rival,score_margin,noise_sigma,blockiness,sharpness,set,object_sharpness,look_alike,phi_plateau_deg,map_rival\n",
     );
     for r in reports {
         r.errors_csv(&mut csv);

@@ -180,6 +180,17 @@ pub fn train_rendered(
     config: &TrainConfig,
     training: &RenderedTraining,
 ) -> Result<ViewDatabase, EvalError> {
+    let renders = render_training(object, training);
+    let labelled: Vec<LabelledView> = renders
+        .iter()
+        .map(|r| protocol::labelled(r, training.distance))
+        .collect();
+    let distance_m = training.distance * object.radius_m();
+    train_views(object.name(), distance_m as f32, &labelled, config)
+}
+
+/// The training views of `object` as `training` renders them.
+fn render_training(object: &Arc<Object>, training: &RenderedTraining) -> Vec<Rendered> {
     let views = training.views.views(training.distance, training.seed);
     let directions = training.light_directions.max(1);
     let mut renders = Vec::with_capacity(views.len() * directions);
@@ -198,12 +209,26 @@ pub fn train_rendered(
             "train views",
         ));
     }
+    renders
+}
+
+/// Gives `db`, trained by `training` before databases recorded their
+/// views' colour maps, the maps its training would record now: its
+/// training views rendered again and measured by its own palette. Nothing
+/// else of it depends on them, so it equals a database trained afresh.
+fn add_view_maps(
+    db: &mut ViewDatabase,
+    object: &Arc<Object>,
+    training: &RenderedTraining,
+) -> Result<(), EvalError> {
+    let renders = render_training(object, training);
     let labelled: Vec<LabelledView> = renders
         .iter()
         .map(|r| protocol::labelled(r, training.distance))
         .collect();
-    let distance_m = training.distance * object.radius_m();
-    train_views(object.name(), distance_m as f32, &labelled, config)
+    let maps = acch_pose::colour_map::measure_view_maps(db, &labelled)?;
+    acch_pose::store_view_maps(db, &maps);
+    Ok(())
 }
 
 /// One estimate of a confidence-training scene.
@@ -1010,9 +1035,25 @@ fn cached_with(
     light_directions: usize,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
     let dir = path.parent().map(PathBuf::from).unwrap_or_default();
+    let training = RenderedTraining {
+        scenes,
+        light_directions,
+        ..RenderedTraining::default()
+    };
     if path.exists() {
         match ViewDatabase::load(&path) {
-            Ok(db) => return Ok((db, path)),
+            Ok(db) if acch_pose::view_maps(&db).is_some() => return Ok((db, path)),
+            Ok(mut db) => {
+                eprintln!(
+                    "acch: adding the views' colour maps to the cached {what}database of '{}' \
+                     (trained before them; {})",
+                    object.name(),
+                    path.display()
+                );
+                add_view_maps(&mut db, object, &training)?;
+                db.save(&path)?;
+                return Ok((db, path));
+            }
             Err(e) => tracing::warn!("retraining: the cached database is unusable: {e}"),
         }
     }
@@ -1022,11 +1063,6 @@ fn cached_with(
         path.display()
     );
     let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
-    let training = RenderedTraining {
-        scenes,
-        light_directions,
-        ..RenderedTraining::default()
-    };
     let (db, choice) = train_object(object, config, &training, confidence)?;
     if let Some(c) = choice {
         eprintln!("acch: {c}");

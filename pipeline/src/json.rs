@@ -137,7 +137,8 @@ pub struct ResultJson<'a> {
     pub sequence: u64,
     /// Whether a pose is reported: estimated, accepted by the confidence
     /// stage (rated at or above the threshold, no close rival, no broad
-    /// crest in azimuth, not faint), seeded. What a robot acts on.
+    /// crest in azimuth, not misplaced, not faint), seeded. What a robot
+    /// acts on.
     pub accepted: bool,
     /// The confidence stage's verdict: accepted, rejected, unrated (the
     /// database has no network), skipped (nothing estimated) or failed.
@@ -159,6 +160,17 @@ pub struct ResultJson<'a> {
     pub phi_plateau_deg: Option<f32>,
     /// The narrowest plateau rejected, when rated.
     pub phi_plateau_limit_deg: Option<f32>,
+    /// How much more of the region's coloured area a view 20-60° from the
+    /// estimate in azimuth holds in place (on its colour map) than the
+    /// estimate's view, when rated and weighed (null too for a database
+    /// without colour maps, or a region that could not be placed).
+    pub map_rival: Option<f32>,
+    /// The largest map rival accepted, when rated.
+    pub max_map_rival: Option<f32>,
+    /// Whether the estimate was rejected as misplaced, when rated: its map
+    /// rival above `max_map_rival` (or not measurable), whatever its
+    /// confidence.
+    pub misplaced: Option<bool>,
     /// Recognition's score for the object's window over its threshold,
     /// when rated and the region was found by recognition.
     pub detection_margin: Option<f32>,
@@ -273,6 +285,9 @@ impl<'a> ResultJson<'a> {
             max_rival: verdict.map(|v| v.max_rival),
             phi_plateau_deg: verdict.map(|v| v.phi_plateau_deg),
             phi_plateau_limit_deg: verdict.map(|v| v.phi_plateau_limit_deg),
+            map_rival: verdict.map(|v| v.map_rival).filter(|r| r.is_finite()),
+            max_map_rival: verdict.map(|v| v.max_map_rival),
+            misplaced: verdict.map(|v| v.misplaced()),
             detection_margin: verdict
                 .map(|v| v.detection_margin)
                 .filter(|m| m.is_finite()),

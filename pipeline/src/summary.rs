@@ -65,7 +65,7 @@ pub struct Outcomes {
     /// Accepted by the confidence stage and seeded: what a robot acts on.
     pub accepted: u64,
     /// Rated but not accepted: below the threshold, ambiguous, on a broad
-    /// crest or faint.
+    /// crest, misplaced or faint.
     pub rejected: u64,
     /// Of the rejected, those with a far view matching nearly as well
     /// ([`crate::stages::Verdict::ambiguous`]), whatever their rating.
@@ -74,6 +74,10 @@ pub struct Outcomes {
     /// well over 40° or more ([`crate::stages::Verdict::broad`]), whatever
     /// their rating.
     pub rejected_broad: u64,
+    /// Of the rejected, those whose region a view beyond the tolerance
+    /// holds in place clearly better ([`crate::stages::Verdict::misplaced`]),
+    /// whatever their rating.
+    pub rejected_misplaced: u64,
     /// Of the rejected, those found faintly and matched weakly
     /// ([`crate::stages::Verdict::faint`]): the object may not be in view.
     pub rejected_faint: u64,
@@ -146,6 +150,7 @@ impl Outcomes {
                     o.rejected += 1;
                     o.rejected_ambiguous += v.ambiguous() as u64;
                     o.rejected_broad += v.broad() as u64;
+                    o.rejected_misplaced += v.misplaced() as u64;
                     o.rejected_faint += v.faint() as u64;
                 }
                 Rating::Unrated => o.unrated_estimates += 1,
@@ -275,7 +280,7 @@ pub fn status_field(pid: u32, key: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stages::{Evidence, PoseEstimate, Verdict};
+    use crate::stages::{Evidence, PoseEstimate, Rules, Verdict};
     use crate::wire::{Maybe, Truth};
 
     fn frame(seq: u64, est: Option<(f32, f32)>, confidence: f32, truth: (f64, f64)) -> Seeded {
@@ -296,10 +301,16 @@ mod tests {
                 confidence,
                 rival: 0.0,
                 phi_plateau_deg: 0.0,
+                map_rival: f32::NEG_INFINITY,
                 detection_margin: f32::INFINITY,
                 match_value: 1.0,
             };
-            let v = Verdict::new(evidence, 0.8, 1.0, f32::INFINITY);
+            let rules = Rules {
+                max_rival: 1.0,
+                phi_plateau_limit_deg: f32::INFINITY,
+                ..Rules::with_threshold(0.8)
+            };
+            let v = Verdict::new(evidence, rules);
             m.rated.rating = Rating::Rated(v);
             if v.accepted {
                 m.seeding.seed = Outcome::Done(Default::default());
@@ -316,15 +327,17 @@ mod tests {
                 confidence: v.confidence,
                 rival: v.rival,
                 phi_plateau_deg: v.phi_plateau_deg,
+                map_rival: v.map_rival,
                 detection_margin: 1.1,
                 match_value: 0.5,
             };
-            m.rated.rating = Rating::Rated(Verdict::new(
-                evidence,
-                v.threshold,
-                v.max_rival,
-                v.phi_plateau_limit_deg,
-            ));
+            let rules = Rules {
+                threshold: v.threshold,
+                max_rival: v.max_rival,
+                phi_plateau_limit_deg: v.phi_plateau_limit_deg,
+                max_map_rival: v.max_map_rival,
+            };
+            m.rated.rating = Rating::Rated(Verdict::new(evidence, rules));
             m.seeding.seed = Outcome::Skipped;
         }
         m

@@ -1,6 +1,7 @@
 //! Accepted means rated at or above the threshold with no far view
 //! matching nearly as well, no broad crest in azimuth about the estimate,
-//! not both faintly detected and weakly matched,
+//! no view beyond the tolerance placing the region's colours clearly
+//! better, not both faintly detected and weakly matched,
 //! and nothing else: a database without a confidence network is refused
 //! unless the run is explicitly unrated (and then nothing is accepted),
 //! and a response the network cannot rate is a counted fault, never an
@@ -70,6 +71,7 @@ fn posed() -> Posed {
             scale: 1.0,
             best_view: 3,
             roll_deg: 0.0,
+            map_rival: -0.2,
         }),
         ..Default::default()
     };
@@ -144,7 +146,10 @@ fn the_stage_rejects_an_estimate_on_a_broad_crest_in_azimuth() {
     assert!(!peak.broad(), "{peak:?}");
     assert_eq!(
         peak.accepted,
-        peak.confidence >= peak.threshold && peak.rival <= peak.max_rival && !peak.faint()
+        peak.confidence >= peak.threshold
+            && peak.rival <= peak.max_rival
+            && !peak.misplaced()
+            && !peak.faint()
     );
 }
 
@@ -174,6 +179,7 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
         verdict.confidence >= verdict.threshold
             && verdict.rival <= verdict.max_rival
             && verdict.phi_plateau_deg < verdict.phi_plateau_limit_deg
+            && verdict.map_rival <= verdict.max_map_rival
             && !verdict.faint()
     );
     assert_eq!(counters.total_faults(), 0);
@@ -293,4 +299,91 @@ fn a_faint_detection_matched_weakly_is_rejected_whatever_the_network_says() {
         "{given:?}"
     );
     assert_eq!(counters.total_faults(), 0);
+}
+
+#[test]
+fn the_stage_rejects_an_estimate_another_view_places_clearly_better() {
+    let (db, mut confidence) = accepting_every_rating();
+    let mut counters = StageCounters::new(StageId::Confidence);
+    let mut response = vec![0.1f32; db.views().len()];
+    response[0] = 0.9;
+    let bytes: Vec<u8> = response.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let mut rate = |map_rival: f32| {
+        let mut input = posed();
+        if let Outcome::Done(p) = &mut input.pose {
+            p.map_rival = map_rival;
+        }
+        step(&mut confidence, &input, &bytes, &mut [], 0, &mut counters)
+            .rating
+            .verdict()
+            .expect("rated")
+    };
+    let misplaced = rate(0.3);
+    assert!(
+        misplaced.misplaced() && !misplaced.accepted && !misplaced.ambiguous(),
+        "{misplaced:?}"
+    );
+    assert_eq!(misplaced.max_map_rival, acch_confidence::MAX_MAP_RIVAL);
+    // At the bar, or nothing weighed: accepted; not measurable: rejected.
+    assert!(rate(acch_confidence::MAX_MAP_RIVAL).accepted);
+    assert!(rate(f32::NEG_INFINITY).accepted);
+    assert!(!rate(f32::NAN).accepted);
+    assert_eq!(counters.total_faults(), 0);
+}
+
+#[test]
+fn an_occluded_objects_visible_part_is_placed_in_its_own_view_not_a_turned_one() {
+    use acch_core::Rect;
+    let db = database(false);
+    let (w, h) = (640, 480);
+    // Fruitbox from a grid view (θ 70°, φ 90°) with a bar over 30 % of its
+    // width, its true visible mask.
+    let object = Arc::new(Object::builtin("fruitbox").unwrap());
+    let mut scene = SceneConfig::new(object, Background::A);
+    scene.occlusion = 0.3;
+    let r =
+        Renderer::new(scene, 3).render(&ViewPose::new(70.0, 90.0, DEFAULT_DISTANCE).unwrap(), 0);
+    let index = db.palette.quantise(r.image.as_raw(), w, h);
+    let mask = r.mask.as_raw();
+    let mut estimator = acch_pose::PoseEstimator::new(db.clone()).unwrap();
+    assert!(
+        estimator.has_view_maps(),
+        "training records the views' maps"
+    );
+    let whole = Rect::full(w, h);
+    let estimate = estimator
+        .estimate(
+            &index,
+            Some(mask),
+            whole,
+            Some(1.0),
+            acch_pose::Refinement::Parabolic,
+        )
+        .expect("estimated");
+    let view_at = |phi: f32| {
+        db.views()
+            .iter()
+            .position(|v| v.theta_deg == 70.0 && v.phi_deg == phi)
+            .expect("a grid view")
+    };
+    // Its own view places it best: no view 30-60° away does better.
+    let own = acch_pose::Estimate {
+        best_view: view_at(90.0),
+        ..estimate
+    };
+    let rival = estimator.map_rival(&index, Some(mask), whole, &own, 20.0);
+    assert!(rival < 0.0, "{rival}");
+    // Claimed to be the view 30° on, the true view 30° back places it
+    // clearly better: that estimate would be rejected.
+    for turned in [60.0, 120.0] {
+        let wrong = acch_pose::Estimate {
+            best_view: view_at(turned),
+            ..estimate
+        };
+        let rival = estimator.map_rival(&index, Some(mask), whole, &wrong, 20.0);
+        assert!(
+            rival > acch_confidence::MAX_MAP_RIVAL,
+            "φ {turned}: {rival}"
+        );
+    }
 }

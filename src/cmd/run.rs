@@ -435,15 +435,16 @@ pub fn run(args: RunArgs) -> Result<()> {
 }
 
 /// The rejected count, with how many a far view's match, a broad crest in
-/// azimuth or a faint detection rejected whatever their rating.
+/// azimuth, a view placing the region better or a faint detection
+/// rejected whatever their rating.
 fn rejections(o: &acch_pipeline::summary::Outcomes) -> String {
-    if o.rejected_ambiguous + o.rejected_broad + o.rejected_faint == 0 {
+    if o.rejected_ambiguous + o.rejected_broad + o.rejected_misplaced + o.rejected_faint == 0 {
         return o.rejected.to_string();
     }
     format!(
-        "{} ({} for a far view matching as well, {} for a broad crest in azimuth, {} found \
-         faintly and matched weakly)",
-        o.rejected, o.rejected_ambiguous, o.rejected_broad, o.rejected_faint
+        "{} ({} for a far view matching as well, {} for a broad crest in azimuth, {} for a \
+         view beyond the tolerance placing it better, {} found faintly and matched weakly)",
+        o.rejected, o.rejected_ambiguous, o.rejected_broad, o.rejected_misplaced, o.rejected_faint
     )
 }
 

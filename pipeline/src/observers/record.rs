@@ -205,6 +205,8 @@ impl Observe for Recording {
                         ", crest {:.0}° ≥ {:.0}° in φ",
                         v.phi_plateau_deg, v.phi_plateau_limit_deg
                     )
+                } else if v.misplaced() {
+                    format!(", a view beyond 20° holds it {:+.2} in place", v.map_rival)
                 } else if v.faint() {
                     format!(
                         ", faint: detection {:.2}x, match {:.2}",

@@ -3,8 +3,11 @@
 //! no view far from it in azimuth matches nearly as well (its rival at
 //! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), the views about
 //! it do not match nearly as well over a broad crest in azimuth (their
-//! plateau under [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), and it is
-//! not both faintly detected and weakly matched
+//! plateau under [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), no view
+//! beyond the tolerance holds the region's colours in place clearly
+//! better (its map rival at most
+//! [`acch_confidence::MAX_MAP_RIVAL`]), and it is not both faintly
+//! detected and weakly matched
 //! ([`acch_confidence::faint_and_weak`]).
 //!
 //! A database without a network is refused unless the run is explicitly
@@ -32,6 +35,11 @@ pub struct Evidence {
     /// The span in azimuth of the views about the estimate that match
     /// nearly as well, degrees ([`acch_confidence::phi_plateau_deg`]).
     pub phi_plateau_deg: f32,
+    /// How much more of the region's coloured area a view beyond the
+    /// tolerance holds in place than the estimate's
+    /// ([`acch_pose::PoseEstimator::map_rival`]; `-inf`: none
+    /// weighed).
+    pub map_rival: f32,
     /// Recognition's score for the object's window over its threshold;
     /// infinity for a region recognition did not find (a given mask).
     pub detection_margin: f32,
@@ -59,40 +67,47 @@ pub struct Verdict {
     /// A plateau this broad or broader is rejected
     /// ([`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]).
     pub phi_plateau_limit_deg: f32,
+    /// How much more of the region's coloured area a view beyond the
+    /// tolerance holds in place than the estimate's (`-inf`: none
+    /// weighed).
+    pub map_rival: f32,
+    /// The largest map rival accepted
+    /// ([`acch_confidence::MAX_MAP_RIVAL`]).
+    pub max_map_rival: f32,
     /// Recognition's score over its threshold (infinity: a given mask).
     pub detection_margin: f32,
     /// The best view's match value.
     pub match_value: f32,
     /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
-    /// rejected), not [`broad`](Self::broad) and not
-    /// [`faint`](Self::faint).
+    /// rejected), not [`broad`](Self::broad), not
+    /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint).
     pub accepted: bool,
 }
 
 impl Verdict {
-    /// The verdict on `evidence`: its confidence against `threshold`, its
-    /// rival against `max_rival`, its plateau against
-    /// `phi_plateau_limit_deg` (by default
-    /// [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), its detection margin
-    /// and match value against [`acch_confidence::faint_and_weak`].
-    pub fn new(
-        evidence: Evidence,
-        threshold: f32,
-        max_rival: f32,
-        phi_plateau_limit_deg: f32,
-    ) -> Self {
+    /// The verdict on `evidence` by `rules`: its confidence against the
+    /// threshold, its rival, plateau and map rival against their
+    /// bars, its detection margin and match value against
+    /// [`acch_confidence::faint_and_weak`].
+    pub fn new(evidence: Evidence, rules: Rules) -> Self {
         let mut v = Verdict {
             confidence: evidence.confidence,
-            threshold,
+            threshold: rules.threshold,
             rival: evidence.rival,
-            max_rival,
+            max_rival: rules.max_rival,
             phi_plateau_deg: evidence.phi_plateau_deg,
-            phi_plateau_limit_deg,
+            phi_plateau_limit_deg: rules.phi_plateau_limit_deg,
+            map_rival: evidence.map_rival,
+            max_map_rival: rules.max_map_rival,
             detection_margin: evidence.detection_margin,
             match_value: evidence.match_value,
             accepted: false,
         };
-        v.accepted = evidence.confidence >= threshold && !v.ambiguous() && !v.broad() && !v.faint();
+        v.accepted = evidence.confidence >= rules.threshold
+            && !v.ambiguous()
+            && !v.broad()
+            && !v.misplaced()
+            && !v.faint();
         v
     }
 
@@ -117,10 +132,49 @@ impl Verdict {
         )
     }
 
+    /// Whether a view beyond the tolerance holds the region's colours in
+    /// place clearly better than the estimate's (rejected for it, whatever
+    /// the confidence): the visible part lies where that view has it.
+    pub fn misplaced(&self) -> bool {
+        use std::cmp::Ordering::{Equal, Less};
+        // A NaN rival (a region that could not be placed) is misplaced too.
+        !matches!(
+            self.map_rival.partial_cmp(&self.max_map_rival),
+            Some(Less | Equal)
+        )
+    }
+
     /// Whether the object was found only faintly and matched weakly
     /// (rejected for it, whatever the confidence): it may not be in view.
     pub fn faint(&self) -> bool {
         acch_confidence::faint_and_weak(self.detection_margin, self.match_value)
+    }
+}
+
+/// The bars an estimate is held against.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rules {
+    /// The network's rating must reach this.
+    pub threshold: f32,
+    /// The largest rival accepted ([`acch_confidence::MAX_RIVAL_RATIO`]).
+    pub max_rival: f32,
+    /// A plateau this broad or broader is rejected
+    /// ([`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]).
+    pub phi_plateau_limit_deg: f32,
+    /// The largest map rival accepted
+    /// ([`acch_confidence::MAX_MAP_RIVAL`]).
+    pub max_map_rival: f32,
+}
+
+impl Rules {
+    /// The default bars with the network's `threshold`.
+    pub fn with_threshold(threshold: f32) -> Self {
+        Rules {
+            threshold,
+            max_rival: acch_confidence::MAX_RIVAL_RATIO,
+            phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
+            max_map_rival: acch_confidence::MAX_MAP_RIVAL,
+        }
     }
 }
 
@@ -204,6 +258,7 @@ pub struct Confidence {
     response: Vec<f32>,
     max_rival: f32,
     phi_plateau_limit_deg: f32,
+    max_map_rival: f32,
 }
 
 impl Confidence {
@@ -237,6 +292,7 @@ impl Confidence {
             views: db.views().to_vec(),
             max_rival: acch_confidence::MAX_RIVAL_RATIO,
             phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
+            max_map_rival: acch_confidence::MAX_MAP_RIVAL,
         }
     }
 
@@ -253,6 +309,14 @@ impl Confidence {
     /// rules without this one.
     pub fn reject_crests_from(&mut self, limit_deg: f32) {
         self.phi_plateau_limit_deg = limit_deg;
+    }
+
+    /// Accepts estimates whose map rival is at most `max` instead of
+    /// [`acch_confidence::MAX_MAP_RIVAL`] (infinity: every
+    /// map rival is accepted); to measure another bar, or the other rules
+    /// without this one.
+    pub fn accept_map_rivals_to(&mut self, max: f32) {
+        self.max_map_rival = max;
     }
 
     /// The network, unless unrated.
@@ -300,24 +364,27 @@ impl Stage for Confidence {
             acch_confidence::PLATEAU_RATIO,
         )
         .map_err(|_| Fault::Response)?;
+        let pose = input.pose.done();
         let evidence = Evidence {
             confidence,
             rival,
             phi_plateau_deg,
+            map_rival: pose.map_or(f32::NAN, |p| p.map_rival),
             detection_margin: input
                 .segmented
                 .recognised
                 .detection
                 .done()
                 .map_or(f32::INFINITY, |w| w.margin()),
-            match_value: input.pose.done().map_or(f32::NAN, |p| p.best_value),
+            match_value: pose.map_or(f32::NAN, |p| p.best_value),
         };
-        Ok(Rating::Rated(Verdict::new(
-            evidence,
-            model.threshold(),
-            self.max_rival,
-            self.phi_plateau_limit_deg,
-        )))
+        let rules = Rules {
+            threshold: model.threshold(),
+            max_rival: self.max_rival,
+            phi_plateau_limit_deg: self.phi_plateau_limit_deg,
+            max_map_rival: self.max_map_rival,
+        };
+        Ok(Rating::Rated(Verdict::new(evidence, rules)))
     }
 
     fn output(input: &Posed, rating: Rating) -> Rated {
@@ -338,14 +405,20 @@ mod tests {
             confidence,
             rival,
             phi_plateau_deg: 0.0,
+            map_rival: -0.2,
             detection_margin: f32::INFINITY,
             match_value: 0.9,
         }
     }
 
+    /// The default bars at the paper's threshold.
+    fn rules() -> Rules {
+        Rules::with_threshold(0.8)
+    }
+
     #[test]
     fn only_a_rating_at_or_above_the_threshold_without_a_close_rival_is_accepted() {
-        let verdict = |confidence, rival| Verdict::new(clear(confidence, rival), 0.8, 0.99, 40.0);
+        let verdict = |confidence, rival| Verdict::new(clear(confidence, rival), rules());
         assert!(Rating::Rated(verdict(0.8, 0.99)).accepted());
         assert!(!Rating::Rated(verdict(0.79, 0.5)).accepted());
         assert!(!Rating::Rated(verdict(f32::NAN, 0.5)).accepted());
@@ -360,7 +433,7 @@ mod tests {
             assert!(!r.accepted(), "{r:?}");
         }
         assert_eq!(
-            Rating::Rated(Verdict::new(clear(0.1, 0.5), 0.8, 0.99, 40.0)).state(),
+            Rating::Rated(Verdict::new(clear(0.1, 0.5), rules())).state(),
             "rejected"
         );
         assert_eq!(Rating::Unrated.state(), "unrated");
@@ -375,9 +448,7 @@ mod tests {
                     match_value,
                     ..clear(1.0, 0.5)
                 },
-                0.8,
-                0.99,
-                40.0,
+                rules(),
             )
         };
         let faint = judged(1.1, 0.5);
@@ -400,9 +471,7 @@ mod tests {
                     phi_plateau_deg,
                     ..clear(1.0, 0.5)
                 },
-                0.8,
-                0.99,
-                40.0,
+                rules(),
             )
         };
         for narrow in [0.0, 30.0, 39.9] {
@@ -413,6 +482,32 @@ mod tests {
             let v = judged(broad);
             assert!(
                 v.broad() && !v.accepted && !v.ambiguous() && !v.faint(),
+                "{v:?}"
+            );
+            assert_eq!(Rating::Rated(v).state(), "rejected");
+        }
+    }
+
+    #[test]
+    fn an_estimate_another_view_places_clearly_better_is_rejected_whatever_its_rating() {
+        let judged = |map_rival| {
+            Verdict::new(
+                Evidence {
+                    map_rival,
+                    ..clear(1.0, 0.5)
+                },
+                rules(),
+            )
+        };
+        // At or under the bar, and with nothing weighed (-inf), accepted.
+        for placed in [f32::NEG_INFINITY, -0.3, 0.0, 0.02] {
+            let v = judged(placed);
+            assert!(v.accepted && !v.misplaced(), "{v:?}");
+        }
+        for misplaced in [0.0201, 0.5, f32::INFINITY, f32::NAN] {
+            let v = judged(misplaced);
+            assert!(
+                v.misplaced() && !v.accepted && !v.ambiguous() && !v.broad() && !v.faint(),
                 "{v:?}"
             );
             assert_eq!(Rating::Rated(v).state(), "rejected");

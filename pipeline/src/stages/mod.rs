@@ -11,7 +11,7 @@ pub mod seeding;
 pub mod segmentation;
 
 pub use by_set::{BySet, Chosen};
-pub use confidence::{Confidence, Evidence, Rated, Rating, Verdict};
+pub use confidence::{Confidence, Evidence, Rated, Rating, Rules, Verdict};
 pub use pose::{Pose, PoseEstimate, Posed, ResponsePayload};
 pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
 pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};

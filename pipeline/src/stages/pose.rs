@@ -30,6 +30,12 @@ pub struct PoseEstimate {
     /// The camera's roll about its optical axis, degrees (0 when the roll
     /// is not searched).
     pub roll_deg: f32,
+    /// How much more of the region's coloured area a view 20-60° away in
+    /// azimuth holds in place than the best view
+    /// ([`PoseEstimator::map_rival`]); `-inf` when nothing was
+    /// weighed (a database without colour maps), NaN when the region could
+    /// not be placed.
+    pub map_rival: f32,
 }
 
 /// Pose's header. `pose`: `Nothing` when the region held no pair of object
@@ -117,9 +123,18 @@ impl Pose {
     /// The stage for `db` on frames of `settings`.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
         let (w, h) = (settings.width, settings.height);
+        let estimator = PoseEstimator::new(db.clone())?.with_roll_search(settings.roll_search_deg);
+        if !estimator.has_view_maps() {
+            tracing::warn!(
+                "the database of '{}' records no colour maps of its views (trained before \
+                 them): no estimate is weighed against where its region lies; train it again \
+                 for that check",
+                db.object
+            );
+        }
         Ok(Pose {
             scale: settings.scale(db),
-            estimator: PoseEstimator::new(db.clone())?.with_roll_search(settings.roll_search_deg),
+            estimator,
             index: IndexImage::new(w, h, vec![0; w as usize * h as usize]),
             refinement: Refinement::Parabolic,
         })
@@ -178,6 +193,13 @@ impl Stage for Pose {
             return Ok(Outcome::Nothing);
         };
         write_response(self.estimator.response(), out)?;
+        let map_rival = self.estimator.map_rival(
+            &self.index,
+            Some(region.mask),
+            crop,
+            &e,
+            acch_confidence::DEFAULT_MIN_PHI_SEPARATION_DEG,
+        );
         Ok(Outcome::Done(PoseEstimate {
             theta_deg: e.theta_deg,
             phi_deg: e.phi_deg,
@@ -185,6 +207,7 @@ impl Stage for Pose {
             scale: e.scale,
             best_view: e.best_view as u32,
             roll_deg: e.roll_deg,
+            map_rival,
         }))
     }
 

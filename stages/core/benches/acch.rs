@@ -2,8 +2,10 @@
 //! 256 px square ROIs (default stride 2, and stride 1 which visits every
 //! pixel like scikit-image's `graycomatrix`), histogram intersection, the
 //! response of a 216-view database, the colour layout (measured over a
-//! 128 px ROI, compared with 216 views'), and the frame quality measure a run
-//! with `smoothing = "auto"` takes of every 640x480 frame.
+//! 128 px ROI, compared with 216 views'), the colour map (measured over a
+//! 128 px ROI in 20 cells across, placed on the 11 views a map rival
+//! weighs on a 10° grid), and the frame quality measure a run with
+//! `smoothing = "auto"` takes of every 640x480 frame.
 //!
 //! `cargo bench -p acch-core --bench acch` runs them (see bench/README.md).
 //! With `ACCH_BENCH_DUMP=FILE` set, the bench instead writes the test image's
@@ -12,8 +14,9 @@
 //! `graycomatrix`, and exits.
 
 use acch_core::{
-    ColourSpace, HistogramExtractor, HistogramParams, IndexImage, LAYOUT_FIELDS, Palette,
-    QualityMeter, Rect, View, ViewDatabase, intersection, layout_distance, layout_into,
+    ColourMap, ColourSpace, HistogramExtractor, HistogramParams, IndexImage, LAYOUT_FIELDS,
+    Palette, PlacedQuery, QualityMeter, Rect, View, ViewDatabase, intersection, layout_distance,
+    layout_into,
 };
 use criterion::{BenchmarkId, Criterion};
 use std::hint::black_box;
@@ -202,6 +205,44 @@ fn bench_layout(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
     });
 }
 
+fn bench_colour_map(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
+    let cell_px = 128.0 / 20.0;
+    let mut query = PlacedQuery::default();
+    c.bench_function("colour_map/measure/128", |b| {
+        b.iter(|| {
+            query.measure(
+                black_box(image),
+                Some(mask),
+                roi(128),
+                COLOURS as usize,
+                cell_px,
+                0.0,
+            )
+        })
+    });
+    // The estimate's view and the 10 views 20-60° either side of it.
+    let views: Vec<ColourMap> = (0..11u32)
+        .map(|i| {
+            let r = Rect {
+                x: i * 10,
+                y: i * 7,
+                width: 128,
+                height: 128,
+            };
+            ColourMap::measure(image, Some(mask), r, COLOURS as usize, cell_px, 0.0)
+                .expect("the test image holds every colour")
+        })
+        .collect();
+    c.bench_function("colour_map/held/11", |b| {
+        b.iter(|| {
+            views
+                .iter()
+                .map(|v| black_box(&query).share_held_by(v, 3))
+                .sum::<f32>()
+        })
+    });
+}
+
 /// A 640x480 RGB frame: 8x8 blocks of a colour that varies from block to
 /// block (their edges off the JPEG grid), with a quarter of the pixels
 /// hashed noise.
@@ -247,6 +288,7 @@ fn main() {
     bench_extract(&mut c, &image, &mask);
     bench_matching(&mut c, &image, &mask);
     bench_layout(&mut c, &image, &mask);
+    bench_colour_map(&mut c, &image, &mask);
     bench_quality(&mut c);
     c.final_summary();
 }

@@ -7,6 +7,7 @@
 
 #![warn(missing_docs)]
 
+pub mod colour_map;
 pub mod database;
 pub mod histogram;
 pub mod joint;
@@ -16,6 +17,7 @@ pub mod palette;
 pub mod quality;
 pub mod smooth;
 
+pub use colour_map::{ColourMap, ColourMapError, PlacedQuery};
 pub use database::{DbError, View, ViewDatabase};
 pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,

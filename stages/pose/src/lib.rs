@@ -8,7 +8,10 @@
 
 #![warn(missing_docs)]
 
+pub mod colour_map;
 pub mod train;
+
+pub use colour_map::{ViewMaps, store_view_maps, view_maps};
 
 use acch_core::{HistogramExtractor, HistogramKind, IndexImage, Rect, ViewDatabase};
 
@@ -292,6 +295,10 @@ pub struct PoseEstimator {
     /// The same at the training scale and upright: what the views are
     /// compared with.
     layout: Vec<f32>,
+    /// Each view's colour map, when the database records them.
+    view_maps: Option<ViewMaps>,
+    /// The last query's map, for [`Self::map_rival`].
+    placed: acch_core::PlacedQuery,
 }
 
 impl PoseEstimator {
@@ -326,6 +333,8 @@ impl PoseEstimator {
             view_layouts: view_layouts(&db),
             measured_layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
+            view_maps: view_maps(&db),
+            placed: acch_core::PlacedQuery::default(),
             db,
         })
     }

@@ -128,6 +128,15 @@ pub enum TrainError {
     /// Invalid histogram parameters.
     #[error(transparent)]
     Params(#[from] acch_core::histogram::HistogramError),
+    /// The labelled views do not make the database's views (not the views
+    /// it was trained on).
+    #[error("the labelled views make {maps} colour maps for a database of {views} views")]
+    ViewsMoved {
+        /// Views of the database.
+        views: usize,
+        /// Maps the labelled views made.
+        maps: usize,
+    },
 }
 
 /// Bounding box of the non-zero bytes of a mask, or `None` when it is empty.
@@ -208,12 +217,6 @@ pub fn build_database(
     };
     let mut extractor = HistogramExtractor::new(params)?;
     let mut db = ViewDatabase::new(object, palette, params, train_distance_m);
-    let mut order: Vec<usize> = (0..views.len()).collect();
-    order.sort_by(|&a, &b| {
-        (views[a].theta_deg, views[a].phi_deg.rem_euclid(360.0))
-            .partial_cmp(&(views[b].theta_deg, views[b].phi_deg.rem_euclid(360.0)))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
     let mut index = IndexImage::default();
     let mut hist = vec![0.0; params.len()];
     let rate_at_training = extractor.pair_rate(1.0);
@@ -223,11 +226,11 @@ pub fn build_database(
     let (mut layout, mut layout_sum) = (vec![0.0; per_view], vec![0.0; per_view]);
     let mut layouts = Vec::with_capacity(views.len() * per_view);
     let pose = |i: usize| (views[i].theta_deg, views[i].phi_deg.rem_euclid(360.0));
-    for group in order.chunk_by(|&a, &b| pose(a) == pose(b)) {
+    for group in pose_groups(views) {
         mean.fill(0.0);
         layout_sum.fill(0.0);
         let (mut n, mut size_px, mut offset, mut pairs) = (0usize, 0.0f32, [0.0f32; 2], 0.0f32);
-        for &i in group {
+        for &i in &group {
             let v = &views[i];
             let Some(roi) = mask_bbox(v.mask, v.width, v.height) else {
                 continue;
@@ -293,7 +296,25 @@ pub fn build_database(
     }
     crate::store_view_pairs(&mut db, &view_pairs);
     crate::store_view_layouts(&mut db, &layouts);
+    let maps = crate::colour_map::measure_view_maps(&db, views)?;
+    crate::colour_map::store_view_maps(&mut db, &maps);
     Ok(db)
+}
+
+/// The indices of `views` grouped by pose (θ, then φ in [0, 360)), in the
+/// order the database stores its views: a group makes one view.
+pub(crate) fn pose_groups(views: &[LabelledView<'_>]) -> Vec<Vec<usize>> {
+    let pose = |i: usize| (views[i].theta_deg, views[i].phi_deg.rem_euclid(360.0));
+    let mut order: Vec<usize> = (0..views.len()).collect();
+    order.sort_by(|&a, &b| {
+        pose(a)
+            .partial_cmp(&pose(b))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    order
+        .chunk_by(|&a, &b| pose(a) == pose(b))
+        .map(<[usize]>::to_vec)
+        .collect()
 }
 
 #[cfg(test)]
