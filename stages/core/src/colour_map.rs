@@ -297,34 +297,61 @@ impl PlacedQuery {
     /// larger). In [0, 1]; 0 when the query is empty or the maps' colours
     /// differ.
     pub fn share_held_by(&self, view: &ColourMap, margin: usize) -> f32 {
-        if self.total == 0 || view.colours != self.colours {
+        self.best_share_held_by(std::iter::once(view), margin)
+    }
+
+    /// The largest [`Self::share_held_by`] among `views` (0 for none): one
+    /// bound for them all, so a view's shift stops as soon as it cannot
+    /// beat the best so far (the result is the same).
+    pub fn best_share_held_by<'a>(
+        &self,
+        views: impl IntoIterator<Item = &'a ColourMap>,
+        margin: usize,
+    ) -> f32 {
+        if self.total == 0 {
             return 0.0;
         }
+        let mut best = 0u32;
+        for view in views {
+            if view.colours == self.colours {
+                best = best.max(self.held_at_best_shift(view, margin, best));
+            }
+        }
+        best as f32 / self.total as f32
+    }
+
+    /// The most of the query `view` holds over the shifts, or `floor` when
+    /// no shift holds more.
+    fn held_at_best_shift(&self, view: &ColourMap, margin: usize, floor: u32) -> u32 {
         let m = margin as i64;
         let (qw, qh) = (self.width as i64, self.height as i64);
         let (vw, vh) = (view.width as i64, view.height as i64);
         let shifts = |v: i64, q: i64| (v - q).min(0) - m..=(v - q).max(0) + m;
         let c = view.colours;
-        let mut best = 0u32;
+        let held_at = |dx: i64, dy: i64, best: u32| {
+            let mut held = 0u32;
+            for (p, &rest) in self.parts.iter().zip(&self.rest) {
+                // This shift cannot beat the best any more.
+                if held + rest <= best {
+                    return held;
+                }
+                let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
+                if (0..vw).contains(&x) && (0..vh).contains(&y) {
+                    let v =
+                        view.cells[(y as usize * view.width + x as usize) * c + p.colour as usize];
+                    held += v.min(p.share) as u32;
+                }
+            }
+            held
+        };
+        // The centred shift first: a good bound early.
+        let mut best = floor.max(held_at((vw - qw) / 2, (vh - qh) / 2, floor));
         for dy in shifts(vh, qh) {
             for dx in shifts(vw, qw) {
-                let mut held = 0u32;
-                for (p, &rest) in self.parts.iter().zip(&self.rest) {
-                    // This shift cannot beat the best any more.
-                    if held + rest <= best {
-                        break;
-                    }
-                    let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
-                    if (0..vw).contains(&x) && (0..vh).contains(&y) {
-                        let v = view.cells
-                            [(y as usize * view.width + x as usize) * c + p.colour as usize];
-                        held += v.min(p.share) as u32;
-                    }
-                }
-                best = best.max(held);
+                best = best.max(held_at(dx, dy, best));
             }
         }
-        best as f32 / self.total as f32
+        best
     }
 }
 

@@ -163,18 +163,21 @@ impl PoseEstimator {
         let best = estimate.best_view;
         let views = self.db.views();
         let slice = self.slices[self.slice_of[best]];
-        let held = |i: usize| self.placed.share_held_by(&maps.maps[i], MAP_MARGIN_CELLS);
-        let rival = (slice.start..slice.start + slice.len)
+        let mut far = (slice.start..slice.start + slice.len)
             .filter(|&i| {
                 let d = phi_error(views[i].phi_deg, views[best].phi_deg);
                 d >= separation_deg && d <= MAP_REACH_DEG
             })
-            .map(held)
-            .fold(f32::NEG_INFINITY, f32::max);
-        if rival == f32::NEG_INFINITY {
-            return rival;
+            .map(|i| &maps.maps[i])
+            .peekable();
+        if far.peek().is_none() {
+            return f32::NEG_INFINITY;
         }
-        rival - held(best)
+        let rival = self.placed.best_share_held_by(far, MAP_MARGIN_CELLS);
+        rival
+            - self
+                .placed
+                .share_held_by(&maps.maps[best], MAP_MARGIN_CELLS)
     }
 
     /// Whether the database records its views' colour maps (else no
