@@ -308,26 +308,35 @@ fn the_stage_rejects_an_estimate_another_view_places_clearly_better() {
     let mut response = vec![0.1f32; db.views().len()];
     response[0] = 0.9;
     let bytes: Vec<u8> = response.iter().flat_map(|v| v.to_ne_bytes()).collect();
-    let mut rate = |map_rival: f32| {
+    let mut rate = |confidence: &mut Confidence, map_rival: f32| {
         let mut input = posed();
         if let Outcome::Done(p) = &mut input.pose {
             p.map_rival = map_rival;
         }
-        step(&mut confidence, &input, &bytes, &mut [], 0, &mut counters)
+        step(confidence, &input, &bytes, &mut [], 0, &mut counters)
             .rating
             .verdict()
             .expect("rated")
     };
-    let misplaced = rate(0.3);
+    let misplaced = rate(&mut confidence, 0.3);
     assert!(
         misplaced.misplaced() && !misplaced.accepted && !misplaced.ambiguous(),
         "{misplaced:?}"
     );
     assert_eq!(misplaced.max_map_rival, acch_confidence::MAX_MAP_RIVAL);
     // At the bar, or nothing weighed: accepted; not measurable: rejected.
-    assert!(rate(acch_confidence::MAX_MAP_RIVAL).accepted);
-    assert!(rate(f32::NEG_INFINITY).accepted);
-    assert!(!rate(f32::NAN).accepted);
+    assert!(rate(&mut confidence, acch_confidence::MAX_MAP_RIVAL).accepted);
+    assert!(rate(&mut confidence, f32::NEG_INFINITY).accepted);
+    assert!(!rate(&mut confidence, f32::NAN).accepted);
+    // Another bar, to measure the rule apart: the same estimate passes
+    // under a looser one, and a tighter one rejects what the default
+    // passes.
+    confidence.accept_map_rivals_to(0.5);
+    let loose = rate(&mut confidence, 0.3);
+    assert!(loose.accepted && !loose.misplaced(), "{loose:?}");
+    assert_eq!(loose.max_map_rival, 0.5);
+    confidence.accept_map_rivals_to(0.0);
+    assert!(!rate(&mut confidence, acch_confidence::MAX_MAP_RIVAL).accepted);
     assert_eq!(counters.total_faults(), 0);
 }
 

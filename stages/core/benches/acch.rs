@@ -237,7 +237,7 @@ fn bench_colour_map(c: &mut Criterion, image: &IndexImage, mask: &[u8]) {
         b.iter(|| {
             views
                 .iter()
-                .map(|v| black_box(&query).share_held_by(v, 3))
+                .map(|v| black_box(&mut query).share_held_by(v, 3))
                 .sum::<f32>()
         })
     });

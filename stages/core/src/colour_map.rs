@@ -30,6 +30,62 @@ pub struct ColourMap {
     height: usize,
     colours: usize,
     cells: Vec<u8>,
+    /// Per row, each colour's shares summed across it; per column, down
+    /// it: bounds that let a shift be skipped unmeasured.
+    sums: BandSums,
+}
+
+/// A map's shares summed along its rows and along its columns, `colours`
+/// per row (column): how much any shift can hold, row (column) by row.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct BandSums {
+    rows: Vec<u32>,
+    columns: Vec<u32>,
+}
+
+impl BandSums {
+    /// All sums of a `width x height` map of `colours` zero (no allocation
+    /// once there is room).
+    fn reset(&mut self, width: usize, height: usize, colours: usize) {
+        self.rows.clear();
+        self.rows.resize(height * colours, 0);
+        self.columns.clear();
+        self.columns.resize(width * colours, 0);
+    }
+
+    fn add(&mut self, x: usize, y: usize, colour: usize, colours: usize, share: u8) {
+        self.rows[y * colours + colour] += share as u32;
+        self.columns[x * colours + colour] += share as u32;
+    }
+}
+
+/// The most a query's bands (rows or columns, `colours` sums each) can
+/// hold of a view's when band `i` of the query lies on band `i + shift` of
+/// the view: per band and colour, the smaller sum. No cell holds more than
+/// the smaller of its row's (column's) sums, so no shift with this offset
+/// holds more.
+fn band_bound(query: &[u32], view: &[u32], colours: usize, shift: i64) -> u32 {
+    let bands = |sums: &[u32]| (sums.len() / colours.max(1)) as i64;
+    let (from, to) = (shift.max(0), (bands(query) + shift).min(bands(view)));
+    if from >= to {
+        return 0;
+    }
+    let (v0, v1) = (from as usize * colours, to as usize * colours);
+    let q0 = (from - shift) as usize * colours;
+    view[v0..v1]
+        .iter()
+        .zip(&query[q0..q0 + (v1 - v0)])
+        .map(|(&v, &q)| v.min(q))
+        .sum()
+}
+
+/// `lo..=hi` from `centre` outwards (centre, +1, -1, +2, ...): the likely
+/// best shifts first, so the bound that skips the others is high early.
+fn centre_out(lo: i64, hi: i64, centre: i64) -> impl Iterator<Item = i64> {
+    let reach = (hi - centre).max(centre - lo).max(0);
+    std::iter::once(centre)
+        .chain((1..=reach).flat_map(move |k| [centre + k, centre - k]))
+        .filter(move |d| (lo..=hi).contains(d))
 }
 
 /// Why a colour map could not be made from its parts.
@@ -70,12 +126,25 @@ impl ColourMap {
                 got: cells.len(),
             });
         }
-        Ok(ColourMap {
+        Ok(ColourMap::with_sums(width, height, colours, cells))
+    }
+
+    fn with_sums(width: usize, height: usize, colours: usize, cells: Vec<u8>) -> Self {
+        let mut sums = BandSums::default();
+        sums.reset(width, height, colours);
+        for (cell, shares) in cells.chunks_exact(colours.max(1)).enumerate() {
+            let (x, y) = (cell % width, cell / width);
+            for (colour, &share) in shares.iter().enumerate() {
+                sums.add(x, y, colour, colours, share);
+            }
+        }
+        ColourMap {
             width,
             height,
             colours,
             cells,
-        })
+            sums,
+        }
     }
 
     /// The map of the pixels of `image` in `roi` (within `mask` when
@@ -95,12 +164,8 @@ impl ColourMap {
         let (width, height) =
             count_cells(image, mask, roi, colours, cell_px, roll_deg, &mut counts)?;
         let unit = 255.0 / (cell_px * cell_px);
-        Some(ColourMap {
-            width,
-            height,
-            colours,
-            cells: counts.iter().map(|&n| share(n, unit)).collect(),
-        })
+        let cells = counts.iter().map(|&n| share(n, unit)).collect();
+        Some(ColourMap::with_sums(width, height, colours, cells))
     }
 
     /// The cell-by-cell mean of `maps` (one pose under several lights):
@@ -120,10 +185,12 @@ impl ColourMap {
                 (sum / k).round() as u8
             })
             .collect();
-        Some(ColourMap {
+        Some(ColourMap::with_sums(
+            first.width,
+            first.height,
+            first.colours,
             cells,
-            ..first.clone()
-        })
+        ))
     }
 
     /// Cells across.
@@ -236,6 +303,14 @@ pub struct PlacedQuery {
     total: u32,
     /// Pixels per colour and cell, reused from frame to frame.
     counts: Vec<u32>,
+    /// The query's shares summed along rows and columns.
+    sums: BandSums,
+    /// Per horizontal shift of the view being placed, its column bound.
+    column_bounds: Vec<u32>,
+    /// The view being placed, on a grid with room for every shift.
+    padded: Vec<u8>,
+    /// Each part's index on that grid at shift zero.
+    at: Vec<u32>,
 }
 
 impl PlacedQuery {
@@ -281,6 +356,15 @@ impl PlacedQuery {
                 self.total += share as u32;
             }
         }
+        self.sums.reset(w, h, colours);
+        for p in &self.parts {
+            let (x, y, c) = (p.x as usize, p.y as usize, p.colour as usize);
+            self.sums.add(x, y, c, colours, p.share);
+        }
+        // The largest parts first: a shift that cannot beat the best is
+        // given up after the fewest parts (the sum is the same).
+        self.parts
+            .sort_unstable_by_key(|p| std::cmp::Reverse(p.share));
         let mut rest = self.total;
         for p in &self.parts {
             self.rest.push(rest);
@@ -296,7 +380,7 @@ impl PlacedQuery {
     /// than the view, or a region grown into something beside the object,
     /// larger). In [0, 1]; 0 when the query is empty or the maps' colours
     /// differ.
-    pub fn share_held_by(&self, view: &ColourMap, margin: usize) -> f32 {
+    pub fn share_held_by(&mut self, view: &ColourMap, margin: usize) -> f32 {
         self.best_share_held_by(std::iter::once(view), margin)
     }
 
@@ -304,7 +388,7 @@ impl PlacedQuery {
     /// bound for them all, so a view's shift stops as soon as it cannot
     /// beat the best so far (the result is the same).
     pub fn best_share_held_by<'a>(
-        &self,
+        &mut self,
         views: impl IntoIterator<Item = &'a ColourMap>,
         margin: usize,
     ) -> f32 {
@@ -321,36 +405,68 @@ impl PlacedQuery {
     }
 
     /// The most of the query `view` holds over the shifts, or `floor` when
-    /// no shift holds more.
-    fn held_at_best_shift(&self, view: &ColourMap, margin: usize, floor: u32) -> u32 {
+    /// no shift holds more. Exact: a shift is skipped, or its sum given
+    /// up, only once it provably cannot beat the best so far.
+    fn held_at_best_shift(&mut self, view: &ColourMap, margin: usize, floor: u32) -> u32 {
+        if view.cells.is_empty() {
+            return floor;
+        }
         let m = margin as i64;
         let (qw, qh) = (self.width as i64, self.height as i64);
         let (vw, vh) = (view.width as i64, view.height as i64);
-        let shifts = |v: i64, q: i64| (v - q).min(0) - m..=(v - q).max(0) + m;
+        let shifts = |v: i64, q: i64| ((v - q).min(0) - m, (v - q).max(0) + m);
+        let ((x_lo, x_hi), (y_lo, y_hi)) = (shifts(vw, qw), shifts(vh, qh));
         let c = view.colours;
+        let mut column_bounds = std::mem::take(&mut self.column_bounds);
+        column_bounds.clear();
+        column_bounds.extend(
+            (x_lo..=x_hi).map(|dx| band_bound(&self.sums.columns, &view.sums.columns, c, dx)),
+        );
+        // The view on a grid with a border of empty cells wide enough for
+        // every shift: each part's cell is its place plus the shift's
+        // offset, with no edge to check.
+        let (ox, oy) = (-x_lo, -y_lo);
+        let pw = (ox + vw).max(ox + x_hi + qw) as usize;
+        let ph = (oy + vh).max(oy + y_hi + qh) as usize;
+        let (ox, oy) = (ox as usize, oy as usize);
+        let mut padded = std::mem::take(&mut self.padded);
+        padded.clear();
+        padded.resize(pw * ph * c, 0);
+        for (y, row) in view.cells.chunks_exact(view.width * c).enumerate() {
+            let start = ((y + oy) * pw + ox) * c;
+            padded[start..start + row.len()].copy_from_slice(row);
+        }
+        let mut at = std::mem::take(&mut self.at);
+        at.clear();
+        at.extend(self.parts.iter().map(|p| {
+            let (x, y) = (p.x as usize + ox, p.y as usize + oy);
+            ((y * pw + x) * c + p.colour as usize) as u32
+        }));
         let held_at = |dx: i64, dy: i64, best: u32| {
+            let offset = (dy * pw as i64 + dx) * c as i64;
             let mut held = 0u32;
-            for (p, &rest) in self.parts.iter().zip(&self.rest) {
+            for ((p, &rest), &at) in self.parts.iter().zip(&self.rest).zip(&at) {
                 // This shift cannot beat the best any more.
                 if held + rest <= best {
                     return held;
                 }
-                let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
-                if (0..vw).contains(&x) && (0..vh).contains(&y) {
-                    let v =
-                        view.cells[(y as usize * view.width + x as usize) * c + p.colour as usize];
-                    held += v.min(p.share) as u32;
-                }
+                held += padded[(at as i64 + offset) as usize].min(p.share) as u32;
             }
             held
         };
-        // The centred shift first: a good bound early.
-        let mut best = floor.max(held_at((vw - qw) / 2, (vh - qh) / 2, floor));
-        for dy in shifts(vh, qh) {
-            for dx in shifts(vw, qw) {
-                best = best.max(held_at(dx, dy, best));
+        let mut best = floor;
+        for dy in centre_out(y_lo, y_hi, (vh - qh) / 2) {
+            let row_bound = band_bound(&self.sums.rows, &view.sums.rows, c, dy);
+            if row_bound <= best {
+                continue;
+            }
+            for dx in centre_out(x_lo, x_hi, (vw - qw) / 2) {
+                if row_bound.min(column_bounds[(dx - x_lo) as usize]) > best {
+                    best = best.max(held_at(dx, dy, best));
+                }
             }
         }
+        (self.column_bounds, self.padded, self.at) = (column_bounds, padded, at);
         best
     }
 }
@@ -448,6 +564,8 @@ mod tests {
         assert_eq!(query.share_held_by(&view, 0), 1.0);
         let other = ColourMap::from_parts(1, 1, 3, vec![255, 255, 255]).unwrap();
         assert_eq!(query.share_held_by(&other, 3), 0.0);
+        let empty = ColourMap::from_parts(0, 4, 2, vec![]).unwrap();
+        assert_eq!(query.share_held_by(&empty, 3), 0.0);
         // The whole view with a blob of its colour grown on 24 px to its
         // left (6 cells, beyond the margin): the view still holds all but
         // the blob, its own part slid back into place.
@@ -464,6 +582,98 @@ mod tests {
         );
         assert!(query.measure(&grown_image, None, whole(&grown_image), 2, 4.0, 0.0));
         assert_eq!(query.share_held_by(&view, 3), 48.0 / 72.0);
+    }
+
+    /// Every shift in full: what the bounds and the early stops must give.
+    fn held_by_every_shift(query: &PlacedQuery, view: &ColourMap, margin: usize) -> u32 {
+        let m = margin as i64;
+        let (qw, qh) = (query.width as i64, query.height as i64);
+        let (vw, vh) = (view.width as i64, view.height as i64);
+        let mut best = 0;
+        for dy in (vh - qh).min(0) - m..=(vh - qh).max(0) + m {
+            for dx in (vw - qw).min(0) - m..=(vw - qw).max(0) + m {
+                let held: u32 = query
+                    .parts
+                    .iter()
+                    .filter_map(|p| {
+                        let (x, y) = (p.x as i64 + dx, p.y as i64 + dy);
+                        ((0..vw).contains(&x) && (0..vh).contains(&y)).then(|| {
+                            let k = (y as usize * view.width + x as usize) * view.colours;
+                            view.cells[k + p.colour as usize].min(p.share) as u32
+                        })
+                    })
+                    .sum();
+                best = best.max(held);
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn skipping_shifts_that_cannot_win_gives_what_trying_every_shift_gives() {
+        // Blotchy pictures of 4 colours (cells of 4 px, blotches of 6), of
+        // sizes about one another's, from a fixed generator.
+        let mut state = 0x2545_f491_u64;
+        let mut next = move |n: u64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 33) % n
+        };
+        let mut blotchy = |w: u32, h: u32| {
+            let seeds: Vec<u8> = (0..(w / 6 + 1) * (h / 6 + 1))
+                .map(|_| next(5) as u8)
+                .collect();
+            let data = (0..w * h)
+                .map(|i| seeds[((i / w) / 6 * (w / 6 + 1) + (i % w) / 6) as usize])
+                .collect();
+            IndexImage::new(w, h, data)
+        };
+        let mut query = PlacedQuery::default();
+        let mut compared = 0;
+        for trial in 0..40u32 {
+            let images: Vec<IndexImage> = (0..4)
+                .map(|k| blotchy(30 + 8 * k + trial % 3 * 5, 28 + trial % 4 * 6))
+                .collect();
+            let views: Vec<ColourMap> = images
+                .iter()
+                .map(|v| ColourMap::measure(v, None, whole(v), 4, 4.0, 0.0).unwrap())
+                .collect();
+            // Every other query a part of a view, on its cells (held whole:
+            // the bounds are tight) or off them; the others pictures of
+            // their own.
+            if trial % 2 == 0 {
+                let image = &images[(trial / 2 % 4) as usize];
+                let step = if trial % 4 == 0 { 4 } else { 1 };
+                let part = Rect {
+                    x: step * (trial % 3),
+                    y: step * (trial % 2 + 1),
+                    width: image.width - 9,
+                    height: image.height - 6,
+                };
+                assert!(query.measure(image, None, part, 4, 4.0, 0.0));
+            } else {
+                let image = blotchy(24 + trial % 5 * 9, 20 + trial % 7 * 7);
+                assert!(query.measure(&image, None, whole(&image), 4, 4.0, 0.0));
+            }
+            let margin = (trial % 4) as usize;
+            let every: Vec<u32> = views
+                .iter()
+                .map(|v| held_by_every_shift(&query, v, margin))
+                .collect();
+            for (view, &held) in views.iter().zip(&every) {
+                let share = query.share_held_by(view, margin);
+                assert_eq!(share, held as f32 / query.total as f32, "trial {trial}");
+            }
+            let best = *every.iter().max().unwrap();
+            assert_eq!(
+                query.best_share_held_by(&views, margin),
+                best as f32 / query.total as f32,
+                "trial {trial}"
+            );
+            compared += 1;
+        }
+        assert_eq!(compared, 40);
     }
 
     #[test]
