@@ -167,7 +167,8 @@ pub struct ImageOutcome {
     pub match_value: Option<f32>,
     /// The confidence network's output; None: not rated.
     pub confidence: Option<f32>,
-    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// The best match beyond 20° of the estimate's azimuth or 10° of its
+    /// elevation over the best
     /// ([`acch_confidence::rival_ratio`]); None: not found.
     pub rival: Option<f32>,
     /// The span in azimuth of the views about the estimate that match
@@ -429,6 +430,7 @@ fn measure(
                         &response,
                         db.views(),
                         acch_confidence::DEFAULT_MIN_PHI_SEPARATION_DEG,
+                        protocol::failure_rule().theta_deg,
                     )
                     .ok()
                 });

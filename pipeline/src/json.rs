@@ -147,7 +147,8 @@ pub struct ResultJson<'a> {
     pub confidence: Option<f32>,
     /// The threshold it was held against, when rated.
     pub threshold: Option<f32>,
-    /// The best match beyond 20° of the estimate's azimuth over the best,
+    /// The best match beyond 20° of the estimate's azimuth or 10° of its
+    /// elevation over the best,
     /// when rated: above `max_rival` the estimate is rejected as
     /// ambiguous, whatever its confidence.
     pub rival: Option<f32>,

@@ -215,23 +215,16 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
     let views = db.views().len();
     let mut counters = StageCounters::new(StageId::Confidence);
     let bytes = |r: &[f32]| -> Vec<u8> { r.iter().flat_map(|v| v.to_ne_bytes()).collect() };
-    let mut rate = |r: &[f32]| {
-        step(
-            &mut confidence,
-            &posed(),
-            &bytes(r),
-            &mut [],
-            0,
-            &mut counters,
-        )
-        .rating
-        .verdict()
-        .expect("rated")
+    let mut rate = |confidence: &mut Confidence, r: &[f32]| {
+        step(confidence, &posed(), &bytes(r), &mut [], 0, &mut counters)
+            .rating
+            .verdict()
+            .expect("rated")
     };
     // One peak over a floor: every rating clears a threshold of 0.
     let mut response = vec![0.1f32; views];
     response[0] = 0.9;
-    let clear = rate(&response);
+    let clear = rate(&mut confidence, &response);
     assert!(clear.accepted && !clear.ambiguous(), "{clear:?}");
     // A view half a turn away in φ matching as well: rejected.
     let opposite = db
@@ -243,7 +236,7 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
         })
         .expect("the grid holds the opposite view");
     response[opposite] = 0.9;
-    let tie = rate(&response);
+    let tie = rate(&mut confidence, &response);
     assert!(tie.confidence >= tie.threshold, "{tie:?}");
     assert!(
         !tie.accepted && tie.ambiguous() && tie.rival == 1.0,
@@ -251,7 +244,21 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
     );
     // Just under the bar: accepted again.
     response[opposite] = 0.9 * acch_confidence::MAX_RIVAL_RATIO * 0.999;
-    assert!(rate(&response).accepted);
+    assert!(rate(&mut confidence, &response).accepted);
+    // The same azimuth beyond the tolerance in elevation: a tilt the
+    // response cannot place, rejected; by azimuth alone it was accepted.
+    response[opposite] = 0.1;
+    let (theta0, phi0) = (db.views()[0].theta_deg, db.views()[0].phi_deg);
+    let tilted = db
+        .views()
+        .iter()
+        .position(|v| v.phi_deg == phi0 && (v.theta_deg - theta0).abs() > 10.0)
+        .expect("the grid holds a view two slices away");
+    response[tilted] = 0.9;
+    let tilt = rate(&mut confidence, &response);
+    assert!(!tilt.accepted && tilt.ambiguous(), "{tilt:?}");
+    confidence.rivals_in_azimuth_only();
+    assert!(rate(&mut confidence, &response).accepted);
 }
 
 #[test]

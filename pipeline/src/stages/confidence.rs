@@ -29,7 +29,8 @@ pub struct Evidence {
     /// The network's probability that the estimate is within the failure
     /// thresholds.
     pub confidence: f32,
-    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// The best match beyond 20° of the estimate's azimuth or 10° of its
+    /// elevation over the best
     /// ([`acch_confidence::rival_ratio`]).
     pub rival: f32,
     /// The span in azimuth of the views about the estimate that match
@@ -56,7 +57,8 @@ pub struct Verdict {
     pub confidence: f32,
     /// The threshold it was held against.
     pub threshold: f32,
-    /// The best match beyond 20° of the estimate's azimuth over the best
+    /// The best match beyond 20° of the estimate's azimuth or 10° of its
+    /// elevation over the best
     /// ([`acch_confidence::rival_ratio`]).
     pub rival: f32,
     /// The largest rival accepted.
@@ -259,6 +261,8 @@ pub struct Confidence {
     max_rival: f32,
     phi_plateau_limit_deg: f32,
     max_map_rival: f32,
+    /// Views farther than this in elevation from the best are rivals too.
+    rival_theta_separation_deg: f32,
 }
 
 impl Confidence {
@@ -293,7 +297,16 @@ impl Confidence {
             max_rival: acch_confidence::MAX_RIVAL_RATIO,
             phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
             max_map_rival: acch_confidence::MAX_MAP_RIVAL,
+            rival_theta_separation_deg: acch_confidence::Tolerance::default().theta_deg,
         }
+    }
+
+    /// Counts as rivals only the views far in azimuth, not those beyond
+    /// the failure tolerance in elevation ([`acch_confidence::rival_ratio`]
+    /// with an infinite elevation separation); to measure the elevation
+    /// side apart.
+    pub fn rivals_in_azimuth_only(&mut self) {
+        self.rival_theta_separation_deg = f32::INFINITY;
     }
 
     /// Accepts estimates whose rival is at most `max_rival` of the best
@@ -355,6 +368,7 @@ impl Stage for Confidence {
             &self.response,
             &self.views,
             model.feature_params().min_phi_separation_deg,
+            self.rival_theta_separation_deg,
         )
         .map_err(|_| Fault::Response)?;
         let phi_plateau_deg = acch_confidence::phi_plateau_deg(

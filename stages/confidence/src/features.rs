@@ -229,33 +229,47 @@ pub(crate) fn scan_response(response: &[f32]) -> Result<(usize, f32), Confidence
     Ok(best)
 }
 
-/// The best match among the views whose azimuth is more than
-/// `min_phi_separation_deg` from the best view's, in any θ slice, over the
-/// global maximum; in [0, 1] (0 when no view is that far, 1 for a zero
-/// response). Unlike [`Features::r_phi`] it looks across slices: seen from
-/// near above, the best view's rival in φ usually sits in a neighbouring
-/// slice, and a turn of the object about the vertical is then a turn of
-/// the image that the paper's same-slice ratio misses.
+/// The best match among the views the estimate would fail against, in
+/// any θ slice, over the global maximum: views whose azimuth is more than
+/// `min_phi_separation_deg` from the best view's, or whose elevation is
+/// more than `theta_separation_deg` from it (the failure rule's 10°;
+/// infinity: azimuth alone). In [0, 1] (0 when no view is that far, 1 for
+/// a zero response). Unlike [`Features::r_phi`] it looks across slices:
+/// seen from near above, the best view's rival in φ usually sits in a
+/// neighbouring slice, and a turn of the object about the vertical is
+/// then a turn of the image that the paper's same-slice ratio misses; and
+/// a view two slices up or down at the same azimuth matching as well is
+/// a tilt the response cannot place.
 ///
-/// Errors as [`Features::compute`] does for the response and the views.
+/// Errors as [`Features::compute`] does for the response and the views,
+/// and for a `theta_separation_deg` that is not positive.
 pub fn rival_ratio(
     response: &[f32],
     views: &[View],
     min_phi_separation_deg: f32,
+    theta_separation_deg: f32,
 ) -> Result<f32, ConfidenceError> {
     FeatureParams {
         min_phi_separation_deg,
     }
     .validate()?;
+    if theta_separation_deg.is_nan() || theta_separation_deg <= 0.0 {
+        return Err(ConfidenceError::InvalidConfig(format!(
+            "the elevation separation of a rival must be positive, got {theta_separation_deg}"
+        )));
+    }
     let (best, g) = scan_with_views(response, views)?;
     if let Some(index) = views.iter().position(|v| !v.phi_deg.is_finite()) {
         return Err(ConfidenceError::InvalidView { index });
     }
-    let phi0 = views[best].phi_deg;
+    let (theta0, phi0) = (views[best].theta_deg, views[best].phi_deg);
     let rival = response
         .iter()
         .zip(views)
-        .filter(|(_, v)| phi_error(v.phi_deg, phi0) > min_phi_separation_deg)
+        .filter(|(_, v)| {
+            phi_error(v.phi_deg, phi0) > min_phi_separation_deg
+                || (v.theta_deg - theta0).abs() > theta_separation_deg
+        })
         .fold(None, |a: Option<f32>, (&m, _)| {
             Some(a.map_or(m, |a| a.max(m)))
         });
@@ -440,30 +454,52 @@ pub(crate) mod tests {
 
     #[test]
     fn the_rival_is_the_best_far_view_in_any_slice() {
+        const INF: f32 = f32::INFINITY;
         let (_, views) = grid(&THETAS, 36);
         let mut r = vec![0.2; views.len()];
         r[5 * 36 + 4] = 0.9; // θ = 90°, φ = 40°: the best.
         r[5 * 36 + 5] = 0.88; // φ = 50°: within 20°, no rival.
         r[4 * 36 + 3] = 0.89; // θ = 80°, φ = 30°: within 20°, no rival.
         // Nothing far matches: the floor.
-        let floor = rival_ratio(&r, &views, 20.0).unwrap();
+        let floor = rival_ratio(&r, &views, 20.0, INF).unwrap();
         assert!((floor - 0.2 / 0.9).abs() < 1e-6, "{floor}");
         // The same slice's same-slice ratio would miss this one: another
         // slice, 140° away.
         r[4 * 36 + 18] = 0.891; // θ = 80°, φ = 180°
-        let rival = rival_ratio(&r, &views, 20.0).unwrap();
+        let rival = rival_ratio(&r, &views, 20.0, INF).unwrap();
         assert!((rival - 0.891 / 0.9).abs() < 1e-6, "{rival}");
         // A tie is a rival of 1; a zero response is all rivals.
         r[18] = 0.9;
-        assert_eq!(rival_ratio(&r, &views, 20.0).unwrap(), 1.0);
+        assert_eq!(rival_ratio(&r, &views, 20.0, INF).unwrap(), 1.0);
         assert_eq!(
-            rival_ratio(&vec![0.0; views.len()], &views, 20.0).unwrap(),
+            rival_ratio(&vec![0.0; views.len()], &views, 20.0, INF).unwrap(),
             1.0
         );
         // A separation of 179.9°: only the opposite view could rival.
-        assert!(rival_ratio(&r, &views, 179.9).unwrap() < 0.5);
-        assert!(rival_ratio(&r, &views[1..], 20.0).is_err());
-        assert!(rival_ratio(&r, &views, 180.0).is_err());
+        assert!(rival_ratio(&r, &views, 179.9, INF).unwrap() < 0.5);
+        assert!(rival_ratio(&r, &views[1..], 20.0, INF).is_err());
+        assert!(rival_ratio(&r, &views, 180.0, INF).is_err());
+        assert!(rival_ratio(&r, &views, 20.0, 0.0).is_err());
+        assert!(rival_ratio(&r, &views, 20.0, f32::NAN).is_err());
+    }
+
+    #[test]
+    fn a_view_beyond_the_tolerance_in_elevation_is_a_rival_too() {
+        let (_, views) = grid(&THETAS, 36);
+        let slice = |theta: f32| THETAS.iter().position(|&t| t == theta).unwrap();
+        let mut r = vec![0.2; views.len()];
+        let best = slice(60.0) * 36 + 4; // θ = 60°, φ = 40°
+        r[best] = 0.9;
+        r[slice(70.0) * 36 + 4] = 0.895; // 10° up: within the tolerance.
+        let near = rival_ratio(&r, &views, 20.0, 10.0).unwrap();
+        assert!((near - 0.2 / 0.9).abs() < 1e-6, "{near}");
+        // Two slices up, the same azimuth: a tilt the response cannot
+        // place; by azimuth alone no rival.
+        r[slice(80.0) * 36 + 4] = 0.894;
+        let tilted = rival_ratio(&r, &views, 20.0, 10.0).unwrap();
+        assert!((tilted - 0.894 / 0.9).abs() < 1e-6, "{tilted}");
+        let by_azimuth = rival_ratio(&r, &views, 20.0, f32::INFINITY).unwrap();
+        assert!((by_azimuth - 0.2 / 0.9).abs() < 1e-6, "{by_azimuth}");
     }
 
     #[test]

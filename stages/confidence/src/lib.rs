@@ -41,7 +41,8 @@ pub use model::{
 pub const DEFAULT_THRESHOLD: f32 = 0.8;
 
 /// An estimate is rejected, whatever the network says, when a view more
-/// than [`DEFAULT_MIN_PHI_SEPARATION_DEG`] away in azimuth matches above
+/// than [`DEFAULT_MIN_PHI_SEPARATION_DEG`] away in azimuth, or more than
+/// the failure tolerance ([`Tolerance`], 10°) in elevation, matches above
 /// this share of the best ([`rival_ratio`]): two poses that far apart
 /// match as well, and which one is right is a coin's toss. Seen from near
 /// above, a box or a bottle often looks so (docs/accuracy.md, "Two views

@@ -151,7 +151,7 @@ pub const RESULT_SCHEMA: &str = r#"{
     "rating": {"type": "string", "description": "accepted, rejected, unrated, skipped or failed"},
     "confidence": {"type": "number", "description": "null when not rated"},
     "threshold": {"type": "number", "description": "null when not rated"},
-    "rival": {"type": "number", "description": "best match beyond 20 degrees of the estimate's azimuth over the best; above max_rival rejected as ambiguous; null when not rated"},
+    "rival": {"type": "number", "description": "best match beyond 20 degrees of the estimate's azimuth or 10 degrees of its elevation over the best; above max_rival rejected as ambiguous; null when not rated"},
     "max_rival": {"type": "number", "description": "null when not rated"},
     "phi_plateau_deg": {"type": "number", "description": "span in azimuth of the views about the estimate, in its elevation, that match within 2 % of the best, degrees; at or above phi_plateau_limit_deg rejected (the truth may lie farther than the 20 degree tolerance); null when not rated"},
     "phi_plateau_limit_deg": {"type": "number", "description": "null when not rated"},
