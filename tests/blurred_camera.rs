@@ -199,9 +199,10 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     assert_eq!(count(&summary, "faulted"), 0, "{summary}");
     // A lens out of focus by 2 px, in one process (every frame taken): the
     // camera's noise and blocking say nothing, the object's sharpness sends
-    // every frame through the smoothed databases, estimated and rated as
-    // that recipe alone does (docs/accuracy.md, "A blurred object", for
-    // what it accepts there).
+    // every frame through the smoothed databases, found and accepted as
+    // that recipe alone does, but from the frame as it is rather than
+    // smoothed again, so no less accurately (docs/accuracy.md, "A blurred
+    // object" and "A blurred frame is not smoothed again").
     std::fs::write(&config, format!("camera_blur_sigma = 2.0\n{zenoh}")).unwrap();
     let (_, _, auto) = run_naming_databases(&in_process, dir.path());
     let recipe = ["--smoothing", "binomial", "--confidence-imaging"];
@@ -224,8 +225,10 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
             "{key}: {auto} {alone}"
         );
     }
-    assert_eq!(
-        auto["accepted_mean_theta_err_deg"], alone["accepted_mean_theta_err_deg"],
-        "{auto} {alone}"
-    );
+    let theta_err = |summary: &serde_json::Value| {
+        summary["accepted_mean_theta_err_deg"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("accepted_mean_theta_err_deg: {summary}"))
+    };
+    assert!(theta_err(&auto) <= theta_err(&alone), "{auto} {alone}");
 }

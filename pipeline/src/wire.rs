@@ -480,7 +480,9 @@ impl DatabaseSet {
 pub enum SmoothedFor {
     /// The camera's noise or JPEG blocking.
     Camera,
-    /// The object blurred, measured over the sharp set's window.
+    /// The object blurred, measured over the sharp set's window: the
+    /// frame is quantised as it is, already as blurred as the smoothed
+    /// set's views.
     Blur,
     /// The sharp set found no object.
     NotFound,

@@ -2,8 +2,9 @@
 //! recognition measures each frame and sends a noisy one, or one whose
 //! object is blurred, through the smoothed databases and a clean one
 //! through the sharp ones, every later stage follows the choice the
-//! header carries, what a stage was not built for is a counted fault, and
-//! a database that cannot stand in for the sharp one is refused.
+//! header carries (a frame sent for its blurred object is not smoothed
+//! again), what a stage was not built for is a counted fault, and a
+//! database that cannot stand in for the sharp one is refused.
 
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Renderer, SceneConfig, ViewPose, ViewSpec,
@@ -84,6 +85,11 @@ fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_
     let mut both = Chain::build_for_sets(&sharp, Some(&smoothed), &settings()).unwrap();
     let mut sharp_only = Chain::build(&sharp, &settings()).unwrap();
     let mut smoothed_only = Chain::build(&smoothed, &settings()).unwrap();
+    // The smoothed databases quantising frames as they are: what a frame
+    // already blurred is matched as.
+    let mut unsmoothed = smoothed.clone();
+    unsmoothed.palette = unsmoothed.palette.clone().with_smoothing(Smoothing::Off);
+    let mut smoothed_frames_as_they_are = Chain::build(&unsmoothed, &settings()).unwrap();
     for (noise, blur, want, why) in [
         (0.0, 0.0, DatabaseSet::Sharp, None),
         (5.0, 0.0, DatabaseSet::Smoothed, Some(SmoothedFor::Camera)),
@@ -119,10 +125,16 @@ fn a_noisy_or_blurred_frame_goes_through_the_smoothed_databases_and_a_clean_one_
             _ => assert_eq!(sharpness, 0.0, "{imaging:?}"),
         }
         // Every stage ran the chosen set's database: the same estimate and
-        // response as a chain of that database alone, and not the other's.
-        let (same, other) = match want {
-            DatabaseSet::Sharp => (&mut sharp_only, &mut smoothed_only),
-            DatabaseSet::Smoothed => (&mut smoothed_only, &mut sharp_only),
+        // response as a chain of that database alone, and not the other's;
+        // a frame sent for its blurred object, quantised as it is.
+        let (same, other) = match why {
+            None => (&mut sharp_only, &mut smoothed_only),
+            Some(SmoothedFor::Blur) => {
+                smoothed_only.process(&header, &rgb);
+                assert_ne!(response(&both), response(&smoothed_only), "smoothed again");
+                (&mut smoothed_frames_as_they_are, &mut sharp_only)
+            }
+            Some(_) => (&mut smoothed_only, &mut sharp_only),
         };
         let alone = same.process(&header, &rgb);
         assert_eq!(out.pose(), alone.pose(), "noise {noise}, blur {blur}");

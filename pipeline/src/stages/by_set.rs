@@ -171,7 +171,11 @@ impl<S: Stage> Stage for BySet<S> {
             // measures: keep the two in step.
             if window.is_none() || acch_core::is_blurred(sharpness) {
                 imaging.set = DatabaseSet::Smoothed;
-                smoothed.process(input, payload, out)?
+                // The smoothed stage reads why it has the frame: one sent
+                // for its blurred object is not smoothed again.
+                let mut chosen = *input;
+                chosen.envelope_mut().imaging = imaging;
+                smoothed.process(&chosen, payload, out)?
             } else {
                 part
             }

@@ -10,7 +10,7 @@
 use super::{BuildError, StageSettings};
 use crate::frame::FrameHeader;
 use crate::stage::Stage;
-use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, StageId};
+use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, SmoothedFor, StageId};
 use acch_core::{IndexImage, IndexView, Rect, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_pose::PoseEstimator;
@@ -306,6 +306,10 @@ impl Stage for Recognition {
     ) -> Result<Outcome<Window>, Fault> {
         // Said for this frame only, whatever becomes of it.
         let written = std::mem::take(&mut self.indices_written);
+        // A frame sent to a smoothing database for its blurred object is
+        // blurred enough already (`BySet` says why it sent it).
+        let blurred = frame.envelope.imaging.smoothed_for() == Some(SmoothedFor::Blur);
+        self.lights.set_frame_blurred(blurred);
         let f = &frame.envelope.frame;
         if (f.width, f.height) != self.size || rgb.len() != 3 * self.pixels() {
             return Err(Fault::FrameSize);

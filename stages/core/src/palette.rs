@@ -368,6 +368,21 @@ impl Palette {
     /// index per pixel (for example straight into a shared-memory sample);
     /// panics if the lengths do not match.
     pub fn quantise_into_slice(&self, rgb: &[u8], width: u32, height: u32, out: &mut [u8]) {
+        self.quantise_into_slice_smoothed(rgb, width, height, out, self.smoothing);
+    }
+
+    /// [`quantise_into_slice`](Self::quantise_into_slice) with the frame
+    /// smoothed by `smoothing` instead of the palette's own (a frame
+    /// already blurred as much as the palette would smooth it is
+    /// quantised as it is).
+    pub fn quantise_into_slice_smoothed(
+        &self,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+        out: &mut [u8],
+        smoothing: Smoothing,
+    ) {
         assert_eq!(
             (rgb.len(), out.len()),
             (
@@ -381,7 +396,7 @@ impl Palette {
                 *dst = self.index([px[0], px[1], px[2]]);
             }
         };
-        match self.smoothing {
+        match smoothing {
             Smoothing::Off => lookup(rgb, out),
             Smoothing::Binomial => smooth::with_smoothed(rgb, width, height, |s| lookup(s, out)),
         }
@@ -812,6 +827,11 @@ mod tests {
         assert!(got.data.contains(&2), "{:?}", got.data);
         let mut slice = vec![0u8; (w * h) as usize];
         smoothing.quantise_into_slice(&rgb, w, h, &mut slice);
+        assert_eq!(slice, got.data);
+        // Told the frame needs no smoothing, it quantises the raw pixels.
+        smoothing.quantise_into_slice_smoothed(&rgb, w, h, &mut slice, Smoothing::Off);
+        assert_eq!(slice, raw.quantise(&rgb, w, h).data);
+        raw.quantise_into_slice_smoothed(&rgb, w, h, &mut slice, Smoothing::Binomial);
         assert_eq!(slice, got.data);
     }
 }

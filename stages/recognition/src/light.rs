@@ -14,7 +14,7 @@
 
 use crate::{Detection, Detector};
 use acch_core::light::{TRAINING_LIGHT_K, colour_temperature_gains};
-use acch_core::{IndexView, NOT_OBJECT, Palette};
+use acch_core::{IndexView, NOT_OBJECT, Palette, Smoothing};
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -85,6 +85,10 @@ pub struct LightSearch {
     /// Share of the training score a detection under another light must
     /// reach ([`RELIT_SCORE_FRACTION`]).
     relit_fraction: f32,
+    /// The frame in hand is already blurred at least as much as the
+    /// palette smooths: it is quantised as it is
+    /// ([`LightSearch::set_frame_blurred`]).
+    frame_blurred: bool,
 }
 
 impl LightSearch {
@@ -104,7 +108,19 @@ impl LightSearch {
             offset: 0,
             scratch: Vec::new(),
             relit_fraction: RELIT_SCORE_FRACTION,
+            frame_blurred: false,
         }
+    }
+
+    /// Says whether the frames to come are already blurred at least as
+    /// much as the palette smooths (an object measured blurred, sent to a
+    /// smoothing palette for it). Such a frame is quantised as it is:
+    /// smoothed again it would be blurrier than the views the palette's
+    /// database was trained on (blur 2 px on three development seeds:
+    /// docs/accuracy.md, "A blurred frame is not smoothed again"). A
+    /// palette that does not smooth quantises alike either way.
+    pub fn set_frame_blurred(&mut self, blurred: bool) {
+        self.frame_blurred = blurred;
     }
 
     /// Counts a detection under another light from `fraction` of the
@@ -161,13 +177,16 @@ impl LightSearch {
     ) -> Option<Detection> {
         let train_score = detector.model().train_score;
         let relit_fraction = self.relit_fraction;
-        let mut training_indices_ready = quantised;
+        // Indices written by another palette were smoothed as it smooths.
+        let mut training_indices_ready = quantised && !self.frame_blurred;
+        let frame_blurred = self.frame_blurred;
         let mut run =
             |at: (usize, usize), palette: &Palette, detector: &mut Detector, indices: &mut [u8]| {
                 // Only the first run may find the indices written.
                 let ready = std::mem::take(&mut training_indices_ready);
                 if !(ready && at == TRAINING) {
-                    palette.quantise_into_slice(rgb, width, height, indices);
+                    let smoothing = frame_smoothing(frame_blurred, palette);
+                    palette.quantise_into_slice_smoothed(rgb, width, height, indices, smoothing);
                 }
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
@@ -248,8 +267,10 @@ impl LightSearch {
         scratch.resize(indices.len(), NOT_OBJECT);
         for k in 0..CANDIDATES {
             let at = self.candidate(k);
-            self.palette(at)
-                .quantise_into_slice(rgb, width, height, &mut scratch);
+            let blurred = self.frame_blurred;
+            let palette = self.palette(at);
+            let smoothing = frame_smoothing(blurred, palette);
+            palette.quantise_into_slice_smoothed(rgb, width, height, &mut scratch, smoothing);
             if let Some(v) = rate(&scratch)
                 && v > best.1
             {
@@ -262,8 +283,10 @@ impl LightSearch {
         }
         let train_score = detector.model().train_score;
         for at in [best.0, in_use] {
-            self.palette(at)
-                .quantise_into_slice(rgb, width, height, indices);
+            let blurred = self.frame_blurred;
+            let palette = self.palette(at);
+            let smoothing = frame_smoothing(blurred, palette);
+            palette.quantise_into_slice_smoothed(rgb, width, height, indices, smoothing);
             let view = IndexView::new(width, height, indices).expect("sized by the caller");
             if let Some(d) = detector
                 .detect(view, scale)
@@ -325,6 +348,16 @@ fn fingerprint(palette: &Palette) -> u64 {
         c.map(f32::to_bits).hash(&mut h);
     }
     h.finish()
+}
+
+/// How a frame is smoothed before `palette` quantises it: not at all when
+/// it is already `blurred` ([`LightSearch::set_frame_blurred`]).
+fn frame_smoothing(blurred: bool, palette: &Palette) -> Smoothing {
+    if blurred {
+        Smoothing::Off
+    } else {
+        palette.smoothing()
+    }
 }
 
 /// The `k`-th nearest of `0..n` to `at`, `at` left out, the lower of two

@@ -197,7 +197,7 @@ pub const RESULT_SCHEMA: &str = r#"{
       "noise_sigma": {"type": "number"}, "blockiness": {"type": "number"},
       "object_sharpness": {"type": "number", "description": "over the object's window; null when not measured"},
       "set": {"type": "string"},
-      "smoothed_for": {"type": "string", "description": "why smoothed: camera (noise or JPEG blocking), blur (the object) or not_found (by the sharp databases); null when sharp"}}}
+      "smoothed_for": {"type": "string", "description": "why smoothed: camera (noise or JPEG blocking), blur (the object; the frame quantised as it is, not smoothed again) or not_found (by the sharp databases); null when sharp"}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
 }"#;
