@@ -185,8 +185,7 @@ impl LightSearch {
                 // Only the first run may find the indices written.
                 let ready = std::mem::take(&mut training_indices_ready);
                 if !(ready && at == TRAINING) {
-                    let smoothing = frame_smoothing(frame_blurred, palette);
-                    palette.quantise_into_slice_smoothed(rgb, width, height, indices, smoothing);
+                    quantise_frame(palette, frame_blurred, rgb, (width, height), indices);
                 }
                 let view = IndexView::new(width, height, indices).expect("sized by the caller");
                 let found = detector
@@ -268,9 +267,13 @@ impl LightSearch {
         for k in 0..CANDIDATES {
             let at = self.candidate(k);
             let blurred = self.frame_blurred;
-            let palette = self.palette(at);
-            let smoothing = frame_smoothing(blurred, palette);
-            palette.quantise_into_slice_smoothed(rgb, width, height, &mut scratch, smoothing);
+            quantise_frame(
+                self.palette(at),
+                blurred,
+                rgb,
+                (width, height),
+                &mut scratch,
+            );
             if let Some(v) = rate(&scratch)
                 && v > best.1
             {
@@ -284,9 +287,7 @@ impl LightSearch {
         let train_score = detector.model().train_score;
         for at in [best.0, in_use] {
             let blurred = self.frame_blurred;
-            let palette = self.palette(at);
-            let smoothing = frame_smoothing(blurred, palette);
-            palette.quantise_into_slice_smoothed(rgb, width, height, indices, smoothing);
+            quantise_frame(self.palette(at), blurred, rgb, (width, height), indices);
             let view = IndexView::new(width, height, indices).expect("sized by the caller");
             if let Some(d) = detector
                 .detect(view, scale)
@@ -350,14 +351,22 @@ fn fingerprint(palette: &Palette) -> u64 {
     h.finish()
 }
 
-/// How a frame is smoothed before `palette` quantises it: not at all when
-/// it is already `blurred` ([`LightSearch::set_frame_blurred`]).
-fn frame_smoothing(blurred: bool, palette: &Palette) -> Smoothing {
-    if blurred {
+/// `rgb` quantised by `palette` into `out`, smoothed as the palette
+/// smooths unless it is already `blurred`
+/// ([`LightSearch::set_frame_blurred`]).
+fn quantise_frame(
+    palette: &Palette,
+    blurred: bool,
+    rgb: &[u8],
+    (width, height): (u32, u32),
+    out: &mut [u8],
+) {
+    let smoothing = if blurred {
         Smoothing::Off
     } else {
         palette.smoothing()
-    }
+    };
+    palette.quantise_into_slice_smoothed(rgb, width, height, out, smoothing);
 }
 
 /// The `k`-th nearest of `0..n` to `at`, `at` left out, the lower of two
