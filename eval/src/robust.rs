@@ -98,8 +98,8 @@ pub const FAMILIES: [Family; 12] = [
     },
 ];
 
-/// The backgrounds measured.
-const BACKGROUNDS: [&str; 3] = ["A", "B", "C"];
+/// The backgrounds every object is seen on.
+pub const BACKGROUNDS: [&str; 3] = ["A", "B", "C"];
 
 /// Options of the robust protocol.
 #[derive(Clone, Debug)]
@@ -282,6 +282,35 @@ fn perturbed(
     Ok(config)
 }
 
+/// The scenes the robust protocol draws for one object on one background:
+/// poses and a render seed of their own per object and background, so the
+/// backgrounds do not repeat one pose and objects do not share poses.
+pub struct SceneDraw {
+    /// The clean scene (the object on the background, held-out textures).
+    pub scene: SceneConfig,
+    /// The camera's poses.
+    pub views: Vec<acch_capture::ViewPose>,
+    /// The renderer's seed (each view's frame seed derives from it).
+    pub render_seed: u64,
+}
+
+impl SceneDraw {
+    /// The draw of `--seed seed` for `object` on background `b` (an index
+    /// into A, B, C), `n` poses.
+    pub fn new(object: &Arc<Object>, seed: u64, b: usize, n: usize) -> Result<Self, EvalError> {
+        let salt = name_salt(object.name());
+        let background: Background = BACKGROUNDS[b].parse()?;
+        Ok(SceneDraw {
+            scene: SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut),
+            views: ViewSpec::Random { n }.views(
+                DEFAULT_DISTANCE,
+                protocol::scene_seed(seed, b, salt, 0x706f_7365),
+            ),
+            render_seed: protocol::scene_seed(seed, b, salt, 0x726f_6275),
+        })
+    }
+}
+
 /// Runs the robust protocol for `object` on its default database `db`.
 pub fn robust(
     object: Arc<Object>,
@@ -308,12 +337,9 @@ pub fn robust(
     // background: with one draw for all, a population of 53 objects at
     // --n 2 was measured on two poses, and the three backgrounds gave one
     // estimate thrice.
-    let views: Vec<Vec<acch_capture::ViewPose>> = (0..BACKGROUNDS.len())
-        .map(|b| {
-            let seed = protocol::scene_seed(o.seed, b, name_salt(object.name()), 0x706f_7365);
-            ViewSpec::Random { n: o.n }.views(DEFAULT_DISTANCE, seed)
-        })
-        .collect();
+    let draws = (0..BACKGROUNDS.len())
+        .map(|b| SceneDraw::new(&object, o.seed, b, o.n))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut conditions: Vec<Option<(&str, f64)>> = vec![None];
     for f in FAMILIES
         .iter()
@@ -335,13 +361,11 @@ pub fn robust(
             _ => 1.0,
         };
         let mut scenes = Vec::new();
-        for (b, name) in BACKGROUNDS.iter().enumerate() {
-            let background: Background = name.parse()?;
-            let base =
-                SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
-            let seed = protocol::scene_seed(o.seed, b, name_salt(object.name()), 0x726f_6275);
-            let renderer = Renderer::new(perturbed(base, *condition, seed)?, seed);
-            let set: Vec<Rendered> = views[b]
+        for draw in &draws {
+            let seed = draw.render_seed;
+            let renderer = Renderer::new(perturbed(draw.scene.clone(), *condition, seed)?, seed);
+            let set: Vec<Rendered> = draw
+                .views
                 .par_iter()
                 .enumerate()
                 .map(|(i, v)| -> Result<Rendered, EvalError> {
