@@ -303,9 +303,16 @@ pub struct PoseEstimator {
 
 impl PoseEstimator {
     /// An estimator over `db`.
-    pub fn new(db: ViewDatabase) -> Result<Self, PoseError> {
+    pub fn new(mut db: ViewDatabase) -> Result<Self, PoseError> {
         if db.views().is_empty() {
             return Err(PoseError::Empty);
+        }
+        // Read once into their own fields below: the sections' bytes would
+        // be a second copy (the maps are 4-6 MB an object, in every stage
+        // that holds an estimator).
+        let (view_layouts, view_maps) = (view_layouts(&db), view_maps(&db));
+        for parsed in [VIEW_LAYOUTS_SECTION, colour_map::VIEW_MAPS_SECTION] {
+            db.sections.remove(parsed);
         }
         let mut extractor = HistogramExtractor::new(db.params)?;
         let rate_at_training = extractor.pair_rate(1.0);
@@ -330,10 +337,10 @@ impl PoseEstimator {
             },
             view_pairs: view_pairs(&db),
             rate_at_training,
-            view_layouts: view_layouts(&db),
+            view_layouts,
             measured_layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
-            view_maps: view_maps(&db),
+            view_maps,
             placed: acch_core::PlacedQuery::default(),
             db,
         })
@@ -894,6 +901,18 @@ mod tests {
             ..train::TrainConfig::default()
         };
         train::build_database("lid", 1.0, &views, &config).unwrap()
+    }
+
+    #[test]
+    fn the_estimator_reads_the_views_layouts_and_maps_once_and_keeps_no_second_copy() {
+        let db = lids_database(&[]);
+        let parsed = [VIEW_LAYOUTS_SECTION, colour_map::VIEW_MAPS_SECTION];
+        assert!(parsed.iter().all(|s| db.sections.contains_key(*s)));
+        let e = PoseEstimator::new(db).unwrap();
+        assert!(e.has_view_maps() && e.view_layouts.is_some());
+        for s in parsed {
+            assert!(!e.database().sections.contains_key(s), "{s} kept twice");
+        }
     }
 
     #[test]
