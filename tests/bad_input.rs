@@ -169,6 +169,11 @@ fn nan_and_negative_command_line_values_name_the_option() {
             &["eval", "--protocol", "table1", "--smoothing", "auto"][..],
             "--smoothing auto",
         ),
+        // A mesh file given as a built-in name: the option it needs.
+        (
+            &["eval", "--protocol", "table2", "--object", "../duck.obj"][..],
+            "a mesh file is read with --mesh ../duck.obj",
+        ),
         // Refused before any database is trained.
         (
             &[

@@ -58,6 +58,9 @@ impl ObjectArgs {
         let object = match (&self.object, &self.mesh) {
             (_, Some(path)) => Object::load_mesh(path, self.mesh_up.unwrap_or_default())
                 .with_context(|| format!("loading mesh {}", path.display()))?,
+            (Some(name), None) if is_mesh_path(name) => bail!(
+                "--object {name}: --object names a built-in object; a mesh file is read with --mesh {name}"
+            ),
             (Some(name), None) => Object::builtin(name)?,
             (None, None) => Object::builtin("fruitbox")?,
         };
@@ -68,6 +71,12 @@ impl ObjectArgs {
         };
         Ok(Arc::new(object))
     }
+}
+
+/// Whether an object named on the command line is a mesh file: anything
+/// with a path separator or a file extension (no built-in name has either).
+fn is_mesh_path(name: &str) -> bool {
+    name.contains('/') || name.contains('.')
 }
 
 /// The objects of a comma-separated list: built-in names and
@@ -86,7 +95,7 @@ pub fn load_objects(spec: &str, population_seed: u64, up: UpAxis) -> Result<Vec<
             for name in acch_capture::population(population_seed, n) {
                 objects.push(Arc::new(Object::builtin(&name)?));
             }
-        } else if item.contains('/') || item.contains('.') {
+        } else if is_mesh_path(item) {
             let object = Object::load_mesh(item, up)
                 .with_context(|| format!("--objects: loading mesh {item}"))?;
             objects.push(Arc::new(object));
