@@ -62,7 +62,7 @@ fn two_known_objects_are_found_and_told_apart() {
                 "{line}"
             );
             assert!(
-                !acch_confidence::faint_and_weak(
+                !acch_confidence::rejected_as_faint(
                     num(margin) as f32 + 5e-4,
                     num(match_value) as f32 + 5e-4
                 ),

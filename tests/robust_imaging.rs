@@ -328,7 +328,7 @@ fn a_population_pools_every_objects_rows_and_names_bad_lists() {
             // decimals can put a value at the bar either side of it).
             let value = |c: &str| l[col(c)].parse::<f32>().unwrap();
             assert!(
-                !acch_confidence::faint_and_weak(
+                !acch_confidence::rejected_as_faint(
                     value("score_margin") + 5e-4,
                     value("match_value") + 5e-4
                 ),
@@ -436,7 +436,9 @@ fn over_exposed_the_light_chosen_by_the_pose_holds_where_recognitions_choice_fai
     use acch_eval::protocol::{self, fails};
 
     let (object, [mut by_recognition, mut by_pose], renderer) =
-        single_image_chains("generated-3004", Background::A, exposed(1.25), 3004);
+        single_image_chains("generated-3004", Background::A, 3004, |c| {
+            c.effects = exposed(1.25)
+        });
     by_recognition
         .stages_mut()
         .recognition
@@ -485,12 +487,16 @@ fn seen_from_above_under_another_exposure_a_small_object_is_found_relit() {
 
     const { assert!(acch_recognition::RELIT_SCORE_FRACTION < 0.7) };
     let (object, mut chains, renderer) =
-        single_image_chains("generated-3005", Background::B, exposed(0.8), 3005);
-    chains[0]
-        .stages_mut()
-        .recognition
-        .sharp_mut()
-        .count_relit_from(0.7);
+        single_image_chains("generated-3005", Background::B, 3005, |c| {
+            c.effects = exposed(0.8)
+        });
+    // The build before: relit from 0.7, found from the threshold (found
+    // from below it, the cap is found faint under the training light and
+    // estimated wrong under it: 5 of 12 accepted wrong with relit at 0.7
+    // when measured; the default finds it relit first).
+    let before = chains[0].stages_mut().recognition.sharp_mut();
+    before.count_relit_from(0.7);
+    before.find_from_margin(1.0);
     for chain in &mut chains {
         chain
             .stages_mut()
@@ -503,14 +509,46 @@ fn seen_from_above_under_another_exposure_a_small_object_is_found_relit() {
             .sharp_mut()
             .reject_crests_from(f32::INFINITY);
     }
-    // [old bar, default bar]: (found, accepted, accepted wrong)
+    // [old bar, default bar]: (found, accepted, accepted wrong, right)
     let (views, tally) = tally_views(&object, &mut chains, &renderer, "grid:86.5:30", 3005);
     eprintln!(
-        "of {views} views (found, accepted, accepted wrong): bar 0.7 {:?}, default {:?}",
+        "of {views} views (found, accepted, accepted wrong, right): bar 0.7 {:?}, default {:?}",
         tally[0], tally[1]
     );
     assert!(tally[0].0 <= views / 4, "{tally:?}");
     assert!(tally[1].1 >= views * 3 / 4, "{tally:?}");
+    assert_eq!(tally[1].2, 0, "{tally:?}");
+}
+
+/// A development object (a bottle) seen from near above behind a bar over
+/// 30 % of its width: its cap and shoulder, a small disc, half hidden,
+/// score just under recognition's threshold (half the training score) and
+/// were lost. Found from [`acch_recognition::MIN_FOUND_MARGIN`] of it they
+/// are estimated right (12 of 12 when measured), and none is accepted:
+/// an estimate found under the threshold never is
+/// ([`acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN`]). Same scenes, the same chain
+/// counting windows as found from the threshold beside it, so the check
+/// can fail.
+#[test]
+fn behind_a_bar_a_view_from_above_is_found_under_the_threshold_and_not_accepted() {
+    use acch_capture::Background;
+
+    const { assert!(acch_recognition::MIN_FOUND_MARGIN < 1.0) };
+    let (object, mut chains, renderer) =
+        single_image_chains("generated-3005", Background::B, 3005, |c| c.occlusion = 0.3);
+    chains[0]
+        .stages_mut()
+        .recognition
+        .sharp_mut()
+        .find_from_margin(1.0);
+    // [from the threshold, default]: (found, accepted, accepted wrong, right)
+    let (views, tally) = tally_views(&object, &mut chains, &renderer, "grid:86.5:30", 3005);
+    eprintln!(
+        "of {views} views (found, accepted, accepted wrong, right): from the threshold {:?}, default {:?}",
+        tally[0], tally[1]
+    );
+    assert!(tally[1].3 >= tally[0].3 + views / 2, "{tally:?}");
+    assert_eq!(tally[1].1, tally[0].1, "{tally:?}");
     assert_eq!(tally[1].2, 0, "{tally:?}");
 }
 
@@ -534,7 +572,9 @@ fn a_far_view_matching_as_well_rejects_an_estimate_the_network_accepts() {
         ..Default::default()
     };
     let (object, mut chains, renderer) =
-        single_image_chains("generated-3007", Background::B, effects, 3007);
+        single_image_chains("generated-3007", Background::B, 3007, |c| {
+            c.effects = effects
+        });
     chains[0]
         .stages_mut()
         .confidence
@@ -547,10 +587,10 @@ fn a_far_view_matching_as_well_rejects_an_estimate_the_network_accepts() {
             .sharp_mut()
             .reject_crests_from(f32::INFINITY);
     }
-    // [every rival, default rival bar]: (found, accepted, accepted wrong)
+    // [every rival, default rival bar]: (found, accepted, accepted wrong, right)
     let (views, tally) = tally_views(&object, &mut chains, &renderer, "grid:86:15", 3007);
     eprintln!(
-        "of {views} views (found, accepted, accepted wrong): every rival {:?}, default {:?}",
+        "of {views} views (found, accepted, accepted wrong, right): every rival {:?}, default {:?}",
         tally[0], tally[1]
     );
     assert!(tally[0].2 >= 3, "{tally:?}");
@@ -559,21 +599,21 @@ fn a_far_view_matching_as_well_rejects_an_estimate_the_network_accepts() {
 
 /// Both `chains` over the views of `grid` (a view specification) rendered
 /// by `renderer`, seeded by `seed`: the number of views and, per chain,
-/// (found, accepted, accepted wrong).
+/// (found, accepted, accepted wrong, found right).
 fn tally_views(
     object: &acch_capture::Object,
     chains: &mut [acch_pipeline::Chain; 2],
     renderer: &acch_capture::Renderer,
     grid: &str,
     seed: u64,
-) -> (usize, [(usize, usize, usize); 2]) {
+) -> (usize, [(usize, usize, usize, usize); 2]) {
     use acch_eval::protocol::{self, fails};
 
     let views = grid
         .parse::<acch_capture::ViewSpec>()
         .unwrap()
         .views(acch_capture::DEFAULT_DISTANCE, seed);
-    let mut tally = [(0usize, 0usize, 0usize); 2];
+    let mut tally = [(0usize, 0usize, 0usize, 0usize); 2];
     for (i, v) in views.iter().enumerate() {
         let scene = renderer.render(v, acch_capture::frame_seed(seed, i));
         let frame = protocol::frame_of(&scene, i as u64, false, object.radius_m());
@@ -581,10 +621,12 @@ fn tally_views(
         for (chain, t) in chains.iter_mut().zip(&mut tally) {
             let out = chain.process(&frame, scene.image.as_raw());
             let Some(e) = out.pose().done() else { continue };
+            let wrong = fails((e.theta_deg, e.phi_deg), truth);
             t.0 += 1;
+            t.3 += !wrong as usize;
             if out.rating().accepted() {
                 t.1 += 1;
-                t.2 += fails((e.theta_deg, e.phi_deg), truth) as usize;
+                t.2 += wrong as usize;
             }
         }
     }
@@ -601,12 +643,13 @@ fn exposed(exposure: f32) -> acch_capture::Effects {
 
 /// Two chains of development object `name`'s cached database searching
 /// every light as single images do, and a renderer of it on `background`
-/// through `effects` (held-out table textures), seeded by `seed`.
+/// (held-out table textures, the rest as `configure` sets it), seeded by
+/// `seed`.
 fn single_image_chains(
     name: &str,
     background: acch_capture::Background,
-    effects: acch_capture::Effects,
     seed: u64,
+    configure: impl FnOnce(&mut acch_capture::SceneConfig),
 ) -> (
     std::sync::Arc<acch_capture::Object>,
     [acch_pipeline::Chain; 2],
@@ -622,6 +665,6 @@ fn single_image_chains(
         || acch_eval::protocol::chain_at(&db, distance_m, SINGLE_IMAGE_LIGHT_SEARCH).unwrap();
     let mut config =
         SceneConfig::new(object.clone(), background).with_textures(TextureSet::HeldOut);
-    config.effects = effects;
+    configure(&mut config);
     (object, [chain(), chain()], Renderer::new(config, seed))
 }

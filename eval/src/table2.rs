@@ -511,8 +511,9 @@ impl Table2Report {
             .map(|x| x.max_ms_detect_segment)
             .fold(0.0, f64::max);
         println!(
-            "window scores: object in view >= {min_in:.3}, out of view <= {max_out:.3} (threshold {:.3}) · slowest recognition + segmentation {max_ms:.2} ms",
-            r.threshold
+            "window scores: object in view >= {min_in:.3}, out of view <= {max_out:.3} (threshold {:.3}, found from {:.3}) · slowest recognition + segmentation {max_ms:.2} ms",
+            r.threshold,
+            acch_recognition::MIN_FOUND_MARGIN * r.threshold
         );
         println!(
             "left: all estimates; right of |: accepted by the confidence network. lost = not found; fail(roi) = scale from the segmented region; fail(true) = true mask; false+ = detections with the object out of view"

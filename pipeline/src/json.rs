@@ -178,9 +178,11 @@ pub struct ResultJson<'a> {
     /// The best view's match value, when rated.
     pub match_value: Option<f32>,
     /// Whether the estimate was rejected as faint, when rated: detection
-    /// margin below [`acch_confidence::MIN_CLEAR_DETECTION_MARGIN`] and
-    /// match value below [`acch_confidence::MIN_CLEAR_MATCH_VALUE`],
-    /// whatever its confidence (the object may not be in view).
+    /// margin below [`acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN`] (under
+    /// recognition's threshold), or below
+    /// [`acch_confidence::MIN_CLEAR_DETECTION_MARGIN`] with a match value
+    /// below [`acch_confidence::MIN_CLEAR_MATCH_VALUE`], whatever its
+    /// confidence (the object may not be in view).
     pub faint: Option<bool>,
     /// Time stamps.
     pub stamp: Stamp,

@@ -45,6 +45,6 @@ pub use multi::MultiChain;
 pub use observe::{Observe, ObserveError, Observer};
 pub use run::{RunError, RunOptions, RunSummary, run_in_process, run_process, run_processes};
 pub use source::{Source, SourceError, SourceSpec, SyntheticCamera};
-pub use stage::{Stage, StageCounters};
+pub use stage::{ObjectWindow, Stage, StageCounters};
 pub use stages::{BuildError, Seeded, StageSettings, Stages};
 pub use wire::{Fault, Hop, Maybe, Outcome, StageId};

@@ -48,12 +48,23 @@ pub trait Stage {
     fn output(input: &Self::Input, part: Self::Part) -> Self::Output;
 
     /// Where in the frame its part found the object (recognition's
-    /// window), for a run that chooses its database set by how sharp the
-    /// object is ([`crate::stages::BySet`]); None: this stage finds none.
-    /// Only recognition says: the other stages keep this default.
-    fn object_window(_part: &Self::Part) -> Option<crate::wire::PixelRect> {
+    /// window) and how clearly, for a run that chooses its database set
+    /// by how sharp the object is ([`crate::stages::BySet`]); None: this
+    /// stage finds none. Only recognition says: the other stages keep this
+    /// default.
+    fn object_window(_part: &Self::Part) -> Option<ObjectWindow> {
         None
     }
+}
+
+/// Where a stage's part found the object ([`Stage::object_window`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectWindow {
+    /// The window in pixels.
+    pub rect: crate::wire::PixelRect,
+    /// Found at or above the model's threshold; false: found under it
+    /// (faint), which another database set may find clearly.
+    pub clear: bool,
 }
 
 /// What a stage counted over a run: where frames went and why.

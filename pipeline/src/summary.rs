@@ -109,7 +109,8 @@ pub struct Outcomes {
     pub smoothed_for_camera: u64,
     /// Of them, for a blurred object.
     pub smoothed_for_blur: u64,
-    /// Of them, because the sharp databases found no object.
+    /// Of them, because the sharp databases found no object (or found it
+    /// only faintly, and the smoothed ones clearly or blurred).
     pub smoothed_for_not_found: u64,
 }
 

@@ -484,7 +484,9 @@ pub enum SmoothedFor {
     /// frame is quantised as it is, already as blurred as the smoothed
     /// set's views.
     Blur,
-    /// The sharp set found no object.
+    /// The sharp set found no object, or found it only under its
+    /// threshold (faint) and the smoothed set found it clearly or the
+    /// object is blurred.
     NotFound,
 }
 

@@ -6,9 +6,9 @@
 //! plateau under [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), no view
 //! beyond the tolerance holds the region's colours in place clearly
 //! better (its map rival at most
-//! [`acch_confidence::MAX_MAP_RIVAL`]), and it is not both faintly
-//! detected and weakly matched
-//! ([`acch_confidence::faint_and_weak`]).
+//! [`acch_confidence::MAX_MAP_RIVAL`]), and it was not found under
+//! recognition's threshold, nor both faintly detected and weakly matched
+//! ([`acch_confidence::rejected_as_faint`]).
 //!
 //! A database without a network is refused unless the run is explicitly
 //! unrated ([`StageSettings::unrated`]): then every estimate is marked
@@ -90,7 +90,7 @@ impl Verdict {
     /// The verdict on `evidence` by `rules`: its confidence against the
     /// threshold, its rival, plateau and map rival against their
     /// bars, its detection margin and match value against
-    /// [`acch_confidence::faint_and_weak`].
+    /// [`acch_confidence::rejected_as_faint`].
     pub fn new(evidence: Evidence, rules: Rules) -> Self {
         let mut v = Verdict {
             confidence: evidence.confidence,
@@ -146,10 +146,11 @@ impl Verdict {
         )
     }
 
-    /// Whether the object was found only faintly and matched weakly
-    /// (rejected for it, whatever the confidence): it may not be in view.
+    /// Whether the object was found under recognition's threshold, or
+    /// only faintly and matched weakly (rejected for it, whatever the
+    /// confidence): it may not be in view.
     pub fn faint(&self) -> bool {
-        acch_confidence::faint_and_weak(self.detection_margin, self.match_value)
+        acch_confidence::rejected_as_faint(self.detection_margin, self.match_value)
     }
 }
 

@@ -9,7 +9,7 @@
 
 use super::{BuildError, StageSettings};
 use crate::frame::FrameHeader;
-use crate::stage::Stage;
+use crate::stage::{ObjectWindow, Stage};
 use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, SmoothedFor, StageId};
 use acch_core::{IndexImage, IndexView, Rect, ViewDatabase};
 use acch_ipc::ZeroCopySend;
@@ -68,7 +68,7 @@ pub struct Window {
     pub window_cells: u32,
     /// Its vote, in [0, 1].
     pub score: f32,
-    /// The model's threshold the score reached.
+    /// The model's threshold the score is measured against.
     pub threshold: f32,
     /// Scale (apparent size relative to training) the window was sized for.
     pub scale: f32,
@@ -79,8 +79,9 @@ pub struct Window {
 }
 
 impl Window {
-    /// How far the score cleared the threshold (score / threshold):
-    /// comparable between objects whose models score on different scales.
+    /// How far the score cleared the threshold (score / threshold; found
+    /// from [`acch_recognition::MIN_FOUND_MARGIN`]): comparable between
+    /// objects whose models score on different scales.
     pub fn margin(&self) -> f32 {
         self.score / self.threshold.max(f32::MIN_POSITIVE)
     }
@@ -99,8 +100,9 @@ impl Window {
     }
 }
 
-/// Recognition's header. `detection`: `Done` when a window reached the
-/// model's threshold, `Nothing` when none did (the object is not in view).
+/// Recognition's header. `detection`: `Done` when a window was found
+/// ([`acch_recognition::Detector::found_score`]), `Nothing` when none was
+/// (the object is not in view).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
 pub struct Recognised {
@@ -193,6 +195,13 @@ impl Recognition {
     /// [`acch_recognition::RELIT_SCORE_FRACTION`] (for measuring).
     pub fn count_relit_from(&mut self, fraction: f32) {
         self.lights.set_relit_score_fraction(fraction);
+    }
+
+    /// The stage counting a window as found from `margin` of the model's
+    /// threshold instead of [`acch_recognition::MIN_FOUND_MARGIN`] (for
+    /// measuring).
+    pub fn find_from_margin(&mut self, margin: f32) {
+        self.detector.set_min_found_margin(margin);
     }
 
     /// The detector (heat map and best score of the last frame).
@@ -356,8 +365,11 @@ impl Stage for Recognition {
         }))
     }
 
-    fn object_window(part: &Outcome<Window>) -> Option<PixelRect> {
-        part.done().map(|w| w.window)
+    fn object_window(part: &Outcome<Window>) -> Option<ObjectWindow> {
+        part.done().map(|w| ObjectWindow {
+            rect: w.window,
+            clear: w.margin() >= 1.0,
+        })
     }
 
     fn output(frame: &FrameHeader, detection: Outcome<Window>) -> Recognised {
@@ -365,5 +377,32 @@ impl Stage for Recognition {
             envelope: frame.envelope,
             detection,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_window_under_the_threshold_is_found_but_not_clearly() {
+        let at = |score| {
+            let window = PixelRect {
+                x: 8,
+                y: 16,
+                width: 40,
+                height: 40,
+            };
+            Outcome::Done(Window {
+                window,
+                score,
+                threshold: 0.3,
+                ..Default::default()
+            })
+        };
+        let found = |score| Recognition::object_window(&at(score)).map(|w| (w.rect.x, w.clear));
+        assert_eq!(found(0.3), Some((8, true)));
+        assert_eq!(found(0.29), Some((8, false)));
+        assert_eq!(Recognition::object_window(&Outcome::Nothing), None);
     }
 }

@@ -50,7 +50,8 @@ pub const CANDIDATES: usize = EXPOSURES.len() + COLOUR_TEMPERATURES_K.len() - 2;
 
 /// The share of the model's training score a detection under a light
 /// other than the training light must reach (under the training light
-/// the model's threshold, half the training score, is enough). Relit, a
+/// 0.7x the model's threshold, 0.35 of the training score, is enough:
+/// [`crate::MIN_FOUND_MARGIN`]). Relit, a
 /// background can take on the object's colours: on table 2's scenes with
 /// the object out of view the best window under any light reached 0.45 of
 /// the training score (can, clutter), against 0.04 under the training
@@ -304,7 +305,8 @@ impl LightSearch {
 }
 
 /// Whether a detection under light `at` counts: under the training light
-/// at the model's threshold, under any other at `relit_fraction` of the
+/// at [`crate::MIN_FOUND_MARGIN`] of the model's threshold, under any
+/// other at `relit_fraction` of the
 /// training score ([`RELIT_SCORE_FRACTION`] unless measuring).
 fn counts(at: (usize, usize), d: &Detection, train_score: f32, relit_fraction: f32) -> bool {
     at == TRAINING || d.score >= relit_fraction * train_score

@@ -158,9 +158,9 @@ pub const RESULT_SCHEMA: &str = r#"{
     "map_rival": {"type": "number", "description": "how much more of the region's coloured area a view 20-60 degrees from the estimate in azimuth holds in place on its colour map than the estimate's view; above max_map_rival rejected as misplaced; null when not rated, when the database has no colour maps or the region could not be placed"},
     "max_map_rival": {"type": "number", "description": "null when not rated"},
     "misplaced": {"type": "boolean", "description": "rejected because a view beyond the tolerance holds the region in place better (map_rival above max_map_rival, or not measurable), whatever the confidence; null when not rated"},
-    "detection_margin": {"type": "number", "description": "recognition's score for the window over its threshold; null when not rated or the region was not found by recognition"},
+    "detection_margin": {"type": "number", "description": "recognition's score for the window over its threshold, from 0.7 (a window from 0.7x the threshold is found, and faint); null when not rated or the region was not found by recognition"},
     "match_value": {"type": "number", "description": "the best view's match value; null when not rated"},
-    "faint": {"type": "boolean", "description": "rejected as faint: detection_margin below 1.3 and match_value below 0.75, whatever the confidence; null when not rated"},
+    "faint": {"type": "boolean", "description": "rejected as faint: detection_margin below 1 (under recognition's threshold), or below 1.3 with match_value below 0.75, whatever the confidence; null when not rated"},
     "stamp": {"type": "object", "properties": {
       "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
       "wall_ns": {"type": "integer"}}},
@@ -197,7 +197,7 @@ pub const RESULT_SCHEMA: &str = r#"{
       "noise_sigma": {"type": "number"}, "blockiness": {"type": "number"},
       "object_sharpness": {"type": "number", "description": "over the object's window; null when not measured"},
       "set": {"type": "string"},
-      "smoothed_for": {"type": "string", "description": "why smoothed: camera (noise or JPEG blocking), blur (the object; the frame quantised as it is, not smoothed again) or not_found (by the sharp databases); null when sharp"}}}
+      "smoothed_for": {"type": "string", "description": "why smoothed: camera (noise or JPEG blocking), blur (the object; the frame quantised as it is, not smoothed again) or not_found (by the sharp databases, or found by them only under the threshold and by the smoothed ones clearly, or blurred); null when sharp"}}}
   },
   "required": ["object", "sequence", "accepted", "stamp", "found", "trail"]
 }"#;
