@@ -47,18 +47,20 @@ fn the_light_search_holds_where_the_training_light_alone_loses_the_object() {
     for (family, level) in [("exposure", 0.5), ("colour_temperature", 3500.0)] {
         let (on, off) = (row(family, level, true), row(family, level, false));
         eprintln!(
-            "{family} {level}: with the search fail {:.2} accepted {:.2}; without fail {:.2}",
+            "{family} {level}: with the search fail {:.2} accepted {:.2}; without fail {:.2} accepted {:.2}",
             f(on, "failure_rate"),
             f(on, "accepted_rate"),
-            f(off, "failure_rate")
+            f(off, "failure_rate"),
+            f(off, "accepted_rate")
         );
         assert!(f(on, "failure_rate") <= 0.1, "{on}");
         assert!(f(on, "accepted_rate") >= 0.8, "{on}");
         assert!(f(on, "acc_failure_rate") <= 0.1, "{on}");
-        assert!(
-            f(off, "failure_rate") >= f(on, "failure_rate") + 0.2,
-            "{off}"
-        );
+        // Without the search the object is lost, estimated wrong, or found
+        // only under recognition's threshold and so never accepted: right
+        // and accepted at least 20 points less often.
+        let right_accepted = |r: &Value| f(r, "accepted_rate") * (1.0 - f(r, "acc_failure_rate"));
+        assert!(right_accepted(off) <= right_accepted(on) - 0.2, "{off}");
     }
     // Clean scenes fail and are accepted as without the search; the light
     // chosen by the pose may move one to a neighbouring light, which moves
