@@ -38,7 +38,7 @@ impl Network {
             for (i, (&w, (&m, &s))) in row.iter().zip(self.mean.iter().zip(&self.std)).enumerate() {
                 z += w * ((x(i) - m) / s);
             }
-            out += self.w2[h] * z.tanh();
+            out += self.w2[h] * libm::tanhf(z);
         }
         out
     }
@@ -53,7 +53,7 @@ impl Network {
 
 /// The logistic function.
 pub(crate) fn sigmoid(z: f32) -> f32 {
-    1.0 / (1.0 + (-z).exp())
+    1.0 / (1.0 + libm::expf(-z))
 }
 
 /// Optimisation settings of [`fit`].
@@ -202,7 +202,7 @@ impl Problem<'_> {
             for k in 0..h {
                 let wr = &w1[k * d..(k + 1) * d];
                 let z: f64 = b1[k] + wr.iter().zip(row).map(|(w, v)| w * v).sum::<f64>();
-                act[k] = z.tanh();
+                act[k] = libm::tanh(z);
                 z2 += w2[k] * act[k];
             }
             let y = if label { 1.0 } else { 0.0 };
@@ -213,8 +213,8 @@ impl Problem<'_> {
             };
             // Cross-entropy from the logit, stable for large |z2|:
             // -y ln σ(z) - (1-y) ln(1-σ(z)) = max(z,0) - y z + ln(1 + e^{-|z|}).
-            loss += w * (z2.max(0.0) - y * z2 + (-z2.abs()).exp().ln_1p());
-            let pz = 1.0 / (1.0 + (-z2).exp());
+            loss += w * (z2.max(0.0) - y * z2 + libm::log1p(libm::exp(-z2.abs())));
+            let pz = 1.0 / (1.0 + libm::exp(-z2));
             let dz2 = w * (pz - y);
             let (g_w1, g_rest) = grad.split_at_mut(o_b1);
             let (g_b1, g_rest) = g_rest.split_at_mut(h);
