@@ -317,8 +317,13 @@ impl ViewDatabase {
             path: path.to_path_buf(),
             source,
         };
+        // A name of this writer's own: two processes or threads training
+        // the same database on first use each rename a whole file (with
+        // one shared name one renamed the other's, which then found none).
+        static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".partial");
+        tmp.push(format!(".{}-{n}.partial", std::process::id()));
         let tmp = PathBuf::from(tmp);
         std::fs::write(&tmp, self.to_bytes()).map_err(io)?;
         std::fs::rename(&tmp, path).map_err(io)
@@ -567,6 +572,24 @@ mod tests {
         );
         db.sections.insert("confidence".into(), vec![1, 2, 3]);
         db
+    }
+
+    #[test]
+    fn writers_saving_one_path_at_once_each_leave_a_whole_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("same.acchdb");
+        let mut db = sample();
+        db.sections.insert("big".into(), vec![7; 1 << 20]);
+        std::thread::scope(|s| {
+            for _ in 0..4 {
+                s.spawn(|| {
+                    for _ in 0..10 {
+                        db.save(&path).expect("every save succeeds");
+                    }
+                });
+            }
+        });
+        assert_eq!(ViewDatabase::load(&path).unwrap(), db);
     }
 
     #[test]
