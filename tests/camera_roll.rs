@@ -1,7 +1,10 @@
 //! The camera rolls: over a simulated eye-in-hand run whose camera rolls
 //! within ±40°, the pose stage's roll search keeps the seeds' full
 //! rotation within 10° of the truth; without it the same frames' seeds are
-//! off, so the check can fail. A database trained for a rolling camera
+//! further off, so the check can fail. (The shape's fit also turns the
+//! pose about the optical axis, up to 20° beyond the searched roll, so
+//! without the search most seeds are still near: the gap is smaller than
+//! before the fit, 94 % within 10° against 100 %.) A database trained for a rolling camera
 //! (`acch train --roll-search-deg`) makes the run search by itself, and
 //! the roll protocol tells it from the default database.
 
@@ -114,8 +117,9 @@ fn the_roll_search_keeps_a_rolling_cameras_seeds_right() {
         "roll search off: {:.1} % within 10°, mean roll error {roll_err_upright:.2}°",
         100.0 * within(&upright)
     );
+    // Measured 7.8° against 4.4°.
     assert!(
-        roll_err_upright > 2.0 * roll_err,
+        roll_err_upright > 1.5 * roll_err,
         "without the search the roll error is {roll_err_upright:.2}°, with it {roll_err:.2}°"
     );
 }
@@ -152,11 +156,12 @@ fn a_database_trained_for_a_rolling_camera_searches_the_roll_by_itself() {
     );
     assert!(seeds.len() >= 240, "only {} of 300 accepted", seeds.len());
     assert!(share >= 0.95, "{:.1} % of seeds within 10°", 100.0 * share);
-    // Told not to search, the same database makes the rolled seeds wrong:
-    // the run did take the search from the database.
+    // Told not to search, the same database makes more rolled seeds
+    // wrong: the run did take the search from the database (measured
+    // 94.3 % within 10° against 100 %).
     let told_off = run(dir.path(), 40.0, Some(0.0), Some(&db));
     assert!(
-        within_10(&told_off) < share - 0.1,
+        within_10(&told_off) < share - 0.03,
         "without the search {:.1} % within 10°, with it {:.1} %",
         100.0 * within_10(&told_off),
         100.0 * share

@@ -12,13 +12,6 @@ import time
 
 import zenoh
 
-# acch_confidence::faint_and_weak: an estimate whose detection cleared its
-# threshold by less than this and whose best match is below that is
-# rejected whatever its confidence.
-MIN_CLEAR_DETECTION_MARGIN = 1.3
-MIN_CLEAR_MATCH_VALUE = 0.75
-
-
 def angle_deg(q1, q2):
     """Angle between two rotations given as [x, y, z, w] quaternions."""
     dot = abs(sum(a * b for a, b in zip(q1, q2)))
@@ -66,22 +59,30 @@ def main():
         if r.get("fused") is not None and r.get("truth") is not None
     ]
     accepted = sum(1 for r in results.values() if r["accepted"])
-    # Each verdict against its own threshold, from the message alone: an
-    # accepted result is rated at or above the threshold, with no rival
-    # above its bar, no broad crest, no view placing its region better
-    # (map rival at most its bar), not both faintly detected and weakly
-    # matched, and seeded (on the seed topic too); a rejected one is rated
-    # below it, has such a rival, crest or placement or is faint, and has
-    # no seed, there or on the seed topic.
+    # Each verdict against its own bars, from the message alone (the bars
+    # travel with every verdict). An estimate the shape chose (verified 1)
+    # is accepted when its contour lies on the region's edge, it beats every
+    # distinct pose by the margin and it was found at or above recognition's
+    # threshold. Otherwise the colour rules: rated at or above the
+    # threshold, no rival above its bar, no broad crest, no view placing
+    # its region better, not faint; and when the shape fitted the colours'
+    # estimate (verified 2), its contour on the region's edge too. An
+    # accepted result is seeded (on the seed topic too); a rejected one has
+    # no seed.
     bad_verdicts = []
     rejected = 0
     for seq, r in results.items():
         conf, thr = r.get("confidence"), r.get("threshold")
         margin, value = r.get("detection_margin"), r.get("match_value")
-        faint = (margin is not None and margin < MIN_CLEAR_DETECTION_MARGIN
-                 and (value is None or not value >= MIN_CLEAR_MATCH_VALUE))
+        rated = r.get("rating") in ("accepted", "rejected")
+        if rated:
+            under = margin is not None and margin < r["min_accepted_detection_margin"]
+            faint = under or (margin is not None and margin < r["min_clear_detection_margin"]
+                              and (value is None or not value >= r["min_clear_match_value"]))
+        else:
+            under = faint = False
         plateau, limit = r.get("phi_plateau_deg"), r.get("phi_plateau_limit_deg")
-        broad = plateau is not None and limit is not None and not plateau < limit
+        broad = plateau is None or limit is None or not plateau < limit
         # A null map rival: nothing weighed (accepted), or not measurable
         # (rejected): the message's own flag tells which.
         map_rival, max_map_rival = r.get("map_rival"), r.get("max_map_rival")
@@ -91,25 +92,35 @@ def main():
         else:
             misplaced = r.get("misplaced") is True
             consistent = r.get("misplaced") is not None or conf is None
-        if r["accepted"]:
-            ok = (r.get("rating") == "accepted" and conf is not None and thr is not None
-                  and conf >= thr and r.get("rival") is not None
-                  and r.get("max_rival") is not None and r["rival"] <= r["max_rival"]
-                  and plateau is not None and limit is not None and not broad
-                  and max_map_rival is not None and not misplaced and consistent
-                  and not faint and r.get("faint") is False
-                  and r.get("seed") is not None and seq in seeds)
-        elif r.get("rating") == "rejected":
-            rejected += 1
-            rival, max_rival = r.get("rival"), r.get("max_rival")
-            ok = (conf is not None and thr is not None
-                  and (conf < thr or (rival is not None and max_rival is not None
-                                      and rival > max_rival) or broad or misplaced
-                      or faint)
-                  and consistent and r.get("faint") is faint
-                  and r.get("seed") is None and seq not in seeds)
+        rival, max_rival = r.get("rival"), r.get("max_rival")
+        colour = (conf is not None and thr is not None and conf >= thr
+                  and rival is not None and max_rival is not None and rival <= max_rival
+                  and not broad and not misplaced and not faint)
+        verified = r.get("verified") or 0
+        edge, min_edge = r.get("region_edge"), r.get("min_region_edge")
+        agrees = edge is not None and min_edge is not None and edge >= min_edge
+        overlap, min_overlap = r.get("overlap"), r.get("min_overlap")
+        covers = overlap is not None and min_overlap is not None and overlap >= min_overlap
+        # No distinct candidate: no margin to fall short of.
+        shape_margin = r.get("shape_margin")
+        clear = shape_margin is None or (r.get("min_shape_margin") is not None
+                                         and shape_margin >= r["min_shape_margin"])
+        if verified == 1:
+            should = agrees and covers and clear and not under
+        elif verified == 2:
+            should = colour and agrees
         else:
-            ok = r.get("seed") is None and seq not in seeds
+            should = colour
+        if not rated:
+            ok = not r["accepted"] and r.get("seed") is None and seq not in seeds
+        elif r["accepted"]:
+            ok = (should and r.get("rating") == "accepted" and consistent
+                  and r.get("faint") is faint
+                  and r.get("seed") is not None and seq in seeds)
+        else:
+            rejected += 1
+            ok = (not should and consistent and r.get("faint") is faint
+                  and r.get("seed") is None and seq not in seeds)
         if not ok:
             bad_verdicts.append(seq)
     seeds_without_acceptance = sorted(s for s in seeds if not results.get(s, {}).get("accepted"))

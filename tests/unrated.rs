@@ -1,7 +1,9 @@
-//! An unrated estimate is never accepted: `acch run` refuses a database
-//! without a confidence network, naming the way out, and with `--unrated`
-//! it runs and reports every estimate as unrated, accepting and seeding
-//! none, in both executors.
+//! An unrated estimate is never accepted: a database without a confidence
+//! network runs when it holds its object's shape (the shape judges the
+//! estimates it chose; the rest are unrated); `acch run`
+//! refuses a database with neither, naming the way out, and with
+//! `--unrated` it runs and reports every estimate as unrated, accepting
+//! and seeding none, in both executors.
 
 mod common;
 
@@ -48,13 +50,60 @@ fn a_database_without_a_network_is_refused_or_runs_explicitly_unrated() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+
+    // With the mesh's shape, the shape judges: the run is rated.
+    let json = dir.path().join("shape.json");
+    let out = acch(
+        dir.path(),
+        &[
+            "run",
+            "--db",
+            db.to_str().unwrap(),
+            "--frames",
+            "10",
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Not refused and not unrated as a run; an estimate the shape chose is
+    // judged by it, one the colours anchored needs the network this
+    // database lacks and is reported unrated (here all 10: the printed
+    // box's colours place every view).
+    let s = summary(&json);
+    assert_eq!(s["unrated"], false, "{s}");
+    let n = |k: &str| s[k].as_u64().unwrap();
+    assert_eq!(
+        n("accepted") + n("rejected") + n("unrated_estimates"),
+        n("estimated"),
+        "{s}"
+    );
+    assert!(n("estimated") >= 8, "{s}");
+    assert_eq!(n("seeds"), n("accepted"), "{s}");
+
+    // Neither a network nor a shape: refused.
+    let mut stripped = acch_core::ViewDatabase::load(&db).unwrap();
+    assert!(
+        stripped
+            .sections
+            .remove(acch_shape::SHAPE_SECTION)
+            .is_some(),
+        "a database trained from an object holds its shape"
+    );
+    stripped.sections.remove(acch_shape::SYMMETRY_SECTION);
+    let db = dir.path().join("neither.acchdb");
+    stripped.save(&db).unwrap();
     let db = db.to_str().unwrap();
 
     let out = acch(dir.path(), &["run", "--db", db, "--frames", "10"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success(),
-        "a database without a network ran rated: {err}"
+        "a database without a network or a shape ran rated: {err}"
     );
     assert!(
         err.contains("no confidence network") && err.contains("--unrated"),

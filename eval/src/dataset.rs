@@ -10,7 +10,7 @@
 //! what the camera does not know.
 
 use crate::EvalError;
-use crate::bop::{self, ModelFrame};
+use crate::bop;
 use crate::protocol::{errors_fail, progress, rotation_error_deg};
 use crate::train::{read_image, read_mask};
 use acch_capture::labels::read_labels;
@@ -42,6 +42,35 @@ pub struct LabelledImage {
     pub distance_m: f64,
     /// The camera, when the dataset says it.
     pub intrinsics: Option<acch_capture::Intrinsics>,
+    /// θ, φ and roll of the poses that look the same by the object's
+    /// symmetry (the annotated one left out): an estimate right for any
+    /// of them is right.
+    pub symmetric_views_deg: Vec<[f64; 3]>,
+    /// The visible share of the object's silhouette, when known.
+    pub visib_fract: Option<f64>,
+    /// The object's pose in the camera (camera from object, metres, the
+    /// object frame of [`acch_capture::Object`]) and those that look the
+    /// same by its symmetry, when the dataset gives whole poses.
+    pub pose_truths: Vec<glam::DAffine3>,
+    /// BOP's scene id, image id and the instance's index in the image.
+    pub bop_ids: Option<(u32, u32, usize)>,
+}
+
+impl LabelledImage {
+    /// The annotated view and those that look the same, θ, φ, roll.
+    pub fn truths_deg(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        std::iter::once([self.theta_deg, self.phi_deg, self.roll_deg])
+            .chain(self.symmetric_views_deg.iter().copied())
+    }
+
+    /// The truth nearest to `estimate` by the whole rotation, θ, φ, roll.
+    pub fn nearest_truth_deg(&self, estimate: [f64; 3]) -> [f64; 3] {
+        self.truths_deg()
+            .min_by(|a, b| {
+                rotation_error_deg(estimate, *a).total_cmp(&rotation_error_deg(estimate, *b))
+            })
+            .expect("the annotated truth is always there")
+    }
 }
 
 /// Where the object is taken from.
@@ -89,6 +118,125 @@ pub struct ImageRow {
     pub accepted: bool,
     /// The network's confidence, when rated.
     pub confidence: Option<f32>,
+    /// The colour histograms' best match value.
+    pub match_value: Option<f32>,
+    /// The visible share of the object's silhouette, when known.
+    pub visib_fract: Option<f64>,
+    /// The object's shape fitted to the image, when the database holds one.
+    pub shape: Option<ShapeRow>,
+    /// Every candidate the shape fitted, best first.
+    pub candidates: Vec<CandidateRow>,
+    /// With automatic segmentation and an annotated mask: the share of
+    /// the grown region on the object.
+    pub region_on_object: Option<f64>,
+    /// The score acch accepts by ([`acceptance_score`]), when rated.
+    pub acceptance_score: Option<f32>,
+    /// Of an accepted estimate with a 6-DOF pose, against the true pose
+    /// (symmetries allowed for): the rotation's error, degrees...
+    pub seed_rotation_err_deg: Option<f64>,
+    /// ...the translation's, metres...
+    pub seed_translation_err_m: Option<f64>,
+    /// ...and the translation's over the true distance.
+    pub seed_translation_err_rel: Option<f64>,
+    /// Seconds the stages took on it.
+    pub seconds: f64,
+    /// BOP's scene id, image id and the instance's index in the image.
+    pub bop_ids: Option<(u32, u32, usize)>,
+}
+
+/// The score acch accepts an estimate by: for one its shape chose
+/// (verified 1), the smaller of its contour's share on the region's edge
+/// and its margin over every distinct pose, each over its bar; else the
+/// network's confidence over its threshold. Accepted means this is at
+/// least 1, and the object was found at or above recognition's threshold
+/// (and, for the colour rules, no rival, crest, misplacement or faint
+/// detection).
+pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
+    if v.verified == 1 {
+        (v.region_edge / v.min_region_edge)
+            .min(v.overlap / v.min_overlap)
+            .min(v.shape_margin / v.min_shape_margin)
+    } else if v.confidence.is_finite() && v.threshold > 0.0 {
+        v.confidence / v.threshold
+    } else {
+        0.0
+    }
+}
+
+/// The figures of the instances whose visible share falls in a band.
+#[derive(Clone, Debug, Serialize)]
+pub struct BandRow {
+    /// The band, "[lo, hi)" of the visible share.
+    pub band: String,
+    /// Instances.
+    pub n: usize,
+    /// Share failing the paper's rule before acceptance.
+    pub failure_rate: f64,
+    /// Share accepted.
+    pub accepted_rate: f64,
+    /// Share accepted and right.
+    pub accepted_right_rate: f64,
+    /// Share of the accepted that fail.
+    pub acc_failure_rate: f64,
+}
+
+/// How close accepted 6-DOF seeds are to the true poses.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SeedErrors {
+    /// Accepted estimates with a 6-DOF pose and a true pose.
+    pub n: usize,
+    /// Median rotation error, degrees.
+    pub median_rotation_err_deg: Option<f64>,
+    /// Median translation error, metres.
+    pub median_translation_err_m: Option<f64>,
+    /// Median translation error over the distance.
+    pub median_translation_err_rel: Option<f64>,
+    /// Share within 15° and 10 % of the distance.
+    pub within_15deg_10pct: f64,
+}
+
+/// One candidate of the shape's estimate.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct CandidateRow {
+    /// θ, φ, roll of its fitted pose, degrees.
+    pub view_deg: [f64; 3],
+    /// Whether it is right by the paper's rule (symmetries allowed for).
+    pub right: bool,
+    /// The angle of its rotation from the truth's, degrees.
+    pub rotation_err_deg: f64,
+    /// What ranked it.
+    pub score: f32,
+    /// What it explains of the image.
+    pub separation: f32,
+    /// Silhouette against region.
+    pub overlap: f32,
+    /// Contour on the region's edge.
+    pub region_edge: f32,
+    /// Contour on image edges.
+    pub contour_edges: f32,
+    /// Inner edges found.
+    pub inner_edges: f32,
+    /// Chromaticity correlation.
+    pub colour: f32,
+    /// The colour histograms' match of its view over their best.
+    pub histograms: f32,
+}
+
+/// What the shape's fit said of one image.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ShapeRow {
+    /// How sharply the colours part across the contour.
+    pub separation: f32,
+    /// The silhouette against the region.
+    pub overlap: f32,
+    /// Separation plus overlap.
+    pub score: f32,
+    /// The best score of a distinct view.
+    pub rival_score: f32,
+    /// θ, φ, roll of the colour histograms' estimate.
+    pub colour_view_deg: [f32; 3],
+    /// Camera-from-object rotation (x, y, z, w) and translation, metres.
+    pub pose: [f32; 7],
 }
 
 /// A dataset's figures.
@@ -127,6 +275,13 @@ pub struct DatasetReport {
     pub acc_failure_rate: f64,
     /// Share of the accepted whose rotation is within 10°.
     pub acc_rotation_within_10deg: f64,
+    /// Share of the images accepted and right by the paper's rule.
+    pub accepted_right_rate: f64,
+    /// The same figures by the visible share of the object (>= 0.7,
+    /// 0.3-0.7, < 0.3), when the dataset knows it.
+    pub bands: Vec<BandRow>,
+    /// Accepted 6-DOF seeds against the true poses, when known.
+    pub seeds: SeedErrors,
     /// Per image.
     pub images: Vec<ImageRow>,
 }
@@ -166,6 +321,83 @@ impl DatasetReport {
             100.0 * self.acc_failure_rate,
             100.0 * self.acc_rotation_within_10deg
         );
+        println!(
+            "accepted and right: {:.1}% of the images",
+            100.0 * self.accepted_right_rate
+        );
+        if !self.bands.is_empty() {
+            println!(
+                "{:>12} {:>6} {:>9} {:>9} {:>14} {:>11}",
+                "visible", "n", "failures", "accepted", "acc. and right", "acc. fail."
+            );
+            for b in &self.bands {
+                println!(
+                    "{:>12} {:>6} {:>8.1}% {:>8.1}% {:>13.1}% {:>10.1}%",
+                    b.band,
+                    b.n,
+                    100.0 * b.failure_rate,
+                    100.0 * b.accepted_rate,
+                    100.0 * b.accepted_right_rate,
+                    100.0 * b.acc_failure_rate
+                );
+            }
+        }
+        if self.seeds.n > 0 {
+            println!(
+                "accepted 6-DOF seeds: {}, median error {:.1}° and {:.1} mm ({:.1}% of the distance), {:.1}% within 15° and 10%",
+                self.seeds.n,
+                self.seeds.median_rotation_err_deg.unwrap_or(f64::NAN),
+                1000.0 * self.seeds.median_translation_err_m.unwrap_or(f64::NAN),
+                100.0 * self.seeds.median_translation_err_rel.unwrap_or(f64::NAN),
+                100.0 * self.seeds.within_15deg_10pct
+            );
+        }
+    }
+
+    /// Writes every estimate of a BOP dataset's instances in the BOP
+    /// challenge's results format (`scene_id,im_id,obj_id,score,R,t,time`;
+    /// R row-major model to camera, t in millimetres, time in seconds), one
+    /// row per estimate with a 6-DOF pose, accepted or not, scored by
+    /// [`acceptance_score`]. `object` is the model the dataset's poses are
+    /// of (millimetres).
+    pub fn write_bop_results(
+        &self,
+        path: &Path,
+        obj_id: u32,
+        object: &acch_capture::Object,
+    ) -> Result<(), EvalError> {
+        use std::fmt::Write as _;
+        let mut out = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
+        let frame = object.file_frame();
+        for r in &self.images {
+            let (Some((scene, im, _)), Some(shape)) = (r.bop_ids, r.shape) else {
+                continue;
+            };
+            let [qx, qy, qz, qw, tx, ty, tz] = shape.pose.map(f64::from);
+            let rotation =
+                glam::DMat3::from_quat(glam::DQuat::from_xyzw(qx, qy, qz, qw).normalize());
+            let radii = glam::DVec3::new(tx, ty, tz) / object.radius_m();
+            let m = frame.camera_from_file(&glam::DAffine3::from_mat3_translation(rotation, radii));
+            let rows = m.matrix3.transpose().to_cols_array();
+            let join = |v: &[f64]| {
+                v.iter()
+                    .map(|x| format!("{x:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            let _ = writeln!(
+                out,
+                "{scene},{im},{obj_id},{:.6},{},{},{:.6}",
+                r.acceptance_score.unwrap_or(0.0),
+                join(&rows),
+                join(&m.translation.to_array()),
+                r.seconds
+            );
+        }
+        std::fs::write(path, out).map_err(|source| EvalError::Io {
+            path: path.to_owned(),
+            source,
+        })
     }
 
     /// Writes the report as JSON.
@@ -188,22 +420,47 @@ pub fn from_labels(dir: &Path) -> Result<Vec<LabelledImage>, EvalError> {
             roll_deg: r.roll_deg,
             distance_m: r.distance_m,
             intrinsics: None,
+            symmetric_views_deg: Vec::new(),
+            visib_fract: None,
+            pose_truths: Vec::new(),
+            bop_ids: None,
         })
         .collect())
 }
 
 /// The instances of object `obj_id` in `split` of the BOP dataset at
-/// `dir`, whose model sits in the method's frame by `frame`.
+/// `dir`, whose model `object` was loaded from (in millimetres) and which
+/// looks the same by `symmetry`; what the dataset lacked is derived
+/// (cached under `cache`) and said in the second value.
 pub fn from_bop(
     dir: &Path,
     split: &str,
     obj_id: u32,
-    frame: &ModelFrame,
-) -> Result<Vec<LabelledImage>, EvalError> {
-    Ok(bop::read_instances(dir, split, obj_id)?
+    object: &acch_capture::Object,
+    symmetry: &acch_shape::Symmetry,
+    cache: &Path,
+) -> Result<(Vec<LabelledImage>, Vec<String>), EvalError> {
+    let read = bop::read_instances(dir, split, obj_id, cache)?;
+    let images = read
+        .instances
         .into_iter()
         .map(|i| {
-            let v = bop::instance_view(&i.camera_from_model, frame);
+            let v = bop::instance_view(&i.camera_from_model, object);
+            let symmetric_views_deg = symmetry
+                .equivalents(&v.camera_from_object.matrix3)
+                .skip(1)
+                .map(|r| {
+                    let pose =
+                        glam::DAffine3::from_mat3_translation(r, v.camera_from_object.translation);
+                    let s = bop::view_of_object(&pose, object);
+                    [s.theta_deg, s.phi_deg, s.roll_deg]
+                })
+                .collect();
+            let t_m = v.camera_from_object.translation * object.radius_m();
+            let pose_truths = symmetry
+                .equivalents(&v.camera_from_object.matrix3)
+                .map(|r| glam::DAffine3::from_mat3_translation(r, t_m))
+                .collect();
             LabelledImage {
                 name: format!(
                     "scene {} image {} instance {}",
@@ -217,9 +474,106 @@ pub fn from_bop(
                 distance_m: v.distance_m,
                 // The size is the image's, read with it.
                 intrinsics: Some(bop::intrinsics_of(&i.camera, (0, 0))),
+                symmetric_views_deg,
+                visib_fract: i.visib_fract,
+                pose_truths,
+                bop_ids: Some((i.scene_id, i.im_id, i.gt_index)),
             }
         })
-        .collect())
+        .collect();
+    Ok((images, read.derived))
+}
+
+/// The recipe of a database for a dataset's camera: training views from
+/// the lowest elevation its annotations show (rounded down to 10°, at
+/// least 0°: the renderer's camera stays above the table) up to 90°, at
+/// the median distance of its instances (object radii of `object`), with
+/// the roll searched as far as 95 % of its instances roll (rounded up to
+/// 15°). BOP's own training images are rendered for its test scenes'
+/// range of poses the same way.
+pub fn dataset_recipe(
+    images: &[LabelledImage],
+    object: &acch_capture::Object,
+) -> crate::train::Recipe {
+    let lowest = images
+        .iter()
+        .map(|i| i.theta_deg)
+        .fold(90.0f64, f64::min)
+        .max(0.0);
+    let mut distances: Vec<f64> = images.iter().map(|i| i.distance_m).collect();
+    distances.sort_by(f64::total_cmp);
+    let median = distances.get(distances.len() / 2).copied();
+    let mut rolls: Vec<f64> = images.iter().map(|i| i.roll_deg.abs()).collect();
+    rolls.sort_by(f64::total_cmp);
+    let roll = rolls
+        .get((rolls.len() * 95 / 100).min(rolls.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    crate::train::Recipe {
+        roll_search_deg: ((roll / 15.0).ceil() * 15.0).min(180.0),
+        lowest_theta_deg: Some(((lowest / 10.0).floor() * 10.0) as u8),
+        distance_radii: median.map(|d| ((d / object.radius_m()) * 10.0).round() / 10.0),
+        ..Default::default()
+    }
+}
+
+/// The figures by visible share, when any instance's is known.
+fn bands(rows: &[ImageRow]) -> Vec<BandRow> {
+    if rows.iter().all(|r| r.visib_fract.is_none()) {
+        return Vec::new();
+    }
+    let share = |k: usize, of: usize| k as f64 / of.max(1) as f64;
+    [
+        (0.7, 1.01, "[0.7, 1]"),
+        (0.3, 0.7, "[0.3, 0.7)"),
+        (0.0, 0.3, "[0, 0.3)"),
+    ]
+    .iter()
+    .map(|&(lo, hi, name)| {
+        let b: Vec<&ImageRow> = rows
+            .iter()
+            .filter(|r| r.visib_fract.is_some_and(|v| v >= lo && v < hi))
+            .collect();
+        let accepted = b.iter().filter(|r| r.accepted).count();
+        let wrong = b.iter().filter(|r| r.accepted && r.failure).count();
+        BandRow {
+            band: name.to_owned(),
+            n: b.len(),
+            failure_rate: share(b.iter().filter(|r| r.failure).count(), b.len()),
+            accepted_rate: share(accepted, b.len()),
+            accepted_right_rate: share(accepted - wrong, b.len()),
+            acc_failure_rate: share(wrong, accepted),
+        }
+    })
+    .collect()
+}
+
+/// The accepted seeds' errors against the true poses.
+fn seed_errors(rows: &[ImageRow]) -> SeedErrors {
+    let with: Vec<&ImageRow> = rows
+        .iter()
+        .filter(|r| r.seed_rotation_err_deg.is_some())
+        .collect();
+    let median = |f: &dyn Fn(&ImageRow) -> Option<f64>| {
+        let mut v: Vec<f64> = with.iter().filter_map(|r| f(r)).collect();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        (n > 0).then(|| (v[(n - 1) / 2] + v[n / 2]) / 2.0)
+    };
+    SeedErrors {
+        n: with.len(),
+        median_rotation_err_deg: median(&|r| r.seed_rotation_err_deg),
+        median_translation_err_m: median(&|r| r.seed_translation_err_m),
+        median_translation_err_rel: median(&|r| r.seed_translation_err_rel),
+        within_15deg_10pct: with
+            .iter()
+            .filter(|r| {
+                r.seed_rotation_err_deg.is_some_and(|e| e <= 15.0)
+                    && r.seed_translation_err_rel.is_some_and(|e| e <= 0.1)
+            })
+            .count() as f64
+            / with.len().max(1) as f64,
+    }
 }
 
 /// |a - b| of two rolls, wrapped, degrees.
@@ -268,6 +622,7 @@ pub fn evaluate(
                 .roll_search_deg
                 .unwrap_or_else(|| acch_pose::trained_roll_search_deg(db)),
             light_search: options.light_search,
+            verify_shape: true,
         };
         Ok(Sized {
             size,
@@ -283,13 +638,16 @@ pub fn evaluate(
     let (mut region, mut response) = (Vec::new(), Vec::new());
     let mut rows = Vec::with_capacity(images.len());
     let bar = progress(images.len() as u64, "images");
+    let mut frame_mask = Vec::new();
     for (seq, img) in images.iter().enumerate() {
+        let mut region_on_object = None;
         let rgb = read_image(&img.image)?.to_rgb8();
         let (w, h) = rgb.dimensions();
         if stages.as_ref().is_none_or(|s| s.size != (w, h)) {
             stages = Some(build((w, h))?);
         }
         let s = stages.as_mut().expect("built above");
+        let started = std::time::Instant::now();
         let k = match img.intrinsics {
             Some(k) => acch_capture::Intrinsics {
                 width: w,
@@ -302,6 +660,19 @@ pub fn evaluate(
         let (pose, rating) = match options.segment {
             Segment::Auto => {
                 let out = s.chain.process(&frame, rgb.as_raw());
+                // How much of the grown region lies on the object.
+                if let (Some(region), Some(path)) = (s.chain.last_region(), &img.mask) {
+                    let truth = read_mask(path, (w, h))?;
+                    region.frame_mask(w, h, &mut frame_mask);
+                    let (mut on, mut all) = (0usize, 0usize);
+                    for (r, t) in frame_mask.iter().zip(&truth) {
+                        if *r != 0 {
+                            all += 1;
+                            on += usize::from(*t != 0);
+                        }
+                    }
+                    region_on_object = Some(on as f64 / all.max(1) as f64);
+                }
                 (out.pose().done(), *out.rating())
             }
             Segment::Mask => {
@@ -324,6 +695,7 @@ pub fn evaluate(
                             &mut stages.pose,
                             &segmented,
                             &region,
+                            rgb.as_raw(),
                             &mut response,
                             0,
                             c_pose,
@@ -332,6 +704,7 @@ pub fn evaluate(
                             &mut stages.confidence,
                             &posed,
                             &response,
+                            &[],
                             &mut [],
                             0,
                             c_conf,
@@ -341,25 +714,109 @@ pub fn evaluate(
                 }
             }
         };
+        let candidates: Vec<CandidateRow> = s
+            .chain
+            .stages()
+            .pose
+            .last_used()
+            .last_shape()
+            .map(|est| {
+                est.scored
+                    .iter()
+                    .map(|c| {
+                        let v = acch_shape::view_of(&c.pose);
+                        let e = [v.theta_deg, v.phi_deg, v.roll_deg];
+                        let t = img.nearest_truth_deg(e);
+                        let right = img.truths_deg().any(|t| {
+                            !errors_fail((
+                                (e[0] - t[0]).abs(),
+                                phi_error(e[1] as f32, t[1] as f32) as f64,
+                            ))
+                        });
+                        CandidateRow {
+                            view_deg: e,
+                            right,
+                            rotation_err_deg: rotation_error_deg(e, t),
+                            score: c.score,
+                            separation: c.evidence.separation,
+                            overlap: c.evidence.overlap,
+                            region_edge: c.evidence.region_edge,
+                            contour_edges: c.evidence.contour_edges,
+                            inner_edges: c.evidence.inner_edges,
+                            colour: c.evidence.colour,
+                            histograms: c.evidence.histograms,
+                        }
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let seconds = started.elapsed().as_secs_f64();
+        // An accepted 6-DOF pose against the truths.
+        let seed_err = pose
+            .filter(|_| rating.accepted())
+            .and_then(|e| e.shape.done())
+            .filter(|_| !img.pose_truths.is_empty())
+            .map(|f| {
+                let est = acch_pipeline::stages::fit_pose(&f);
+                let rot = img
+                    .pose_truths
+                    .iter()
+                    .map(|t| acch_shape::rotation_angle_deg(&est.matrix3, &t.matrix3))
+                    .fold(f64::INFINITY, f64::min);
+                let t = img.pose_truths[0].translation;
+                let err = (est.translation - t).length();
+                (rot, err, err / t.length())
+            });
         let estimate = pose.map(|e| [e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64]);
+        // Scored against the truth it is nearest to, by symmetry.
+        let truth = estimate.map_or([img.theta_deg, img.phi_deg, img.roll_deg], |e| {
+            img.nearest_truth_deg(e)
+        });
         let failure = estimate.is_none_or(|e| {
-            errors_fail((
-                (e[0] - img.theta_deg).abs(),
-                phi_error(e[1] as f32, img.phi_deg as f32) as f64,
-            ))
+            img.truths_deg().all(|t| {
+                errors_fail((
+                    (e[0] - t[0]).abs(),
+                    phi_error(e[1] as f32, t[1] as f32) as f64,
+                ))
+            })
         });
         rows.push(ImageRow {
             name: img.name.clone(),
-            truth_deg: [img.theta_deg, img.phi_deg, img.roll_deg],
+            truth_deg: truth,
             distance_m: img.distance_m,
             outside_theta_range: !(theta_min as f64 - 1e-6..=theta_max as f64 + 1e-6)
                 .contains(&img.theta_deg),
             estimate_deg: estimate,
             failure,
-            rotation_err_deg: estimate
-                .map(|e| rotation_error_deg(e, [img.theta_deg, img.phi_deg, img.roll_deg])),
+            rotation_err_deg: estimate.map(|e| rotation_error_deg(e, truth)),
+            visib_fract: img.visib_fract,
+            shape: pose.and_then(|e| e.shape.done()).map(|f| ShapeRow {
+                separation: f.separation,
+                overlap: f.overlap,
+                score: f.score,
+                rival_score: f.rival_score,
+                colour_view_deg: f.colour_view_deg,
+                pose: [
+                    f.rotation[0],
+                    f.rotation[1],
+                    f.rotation[2],
+                    f.rotation[3],
+                    f.translation_m[0],
+                    f.translation_m[1],
+                    f.translation_m[2],
+                ],
+            }),
+            candidates,
+            region_on_object,
+            acceptance_score: rating.verdict().map(|v| acceptance_score(&v)),
+            seed_rotation_err_deg: seed_err.map(|e| e.0),
+            seed_translation_err_m: seed_err.map(|e| e.1),
+            seed_translation_err_rel: seed_err.map(|e| e.2),
+            seconds,
+            bop_ids: img.bop_ids,
             accepted: rating.accepted(),
             confidence: rating.verdict().map(|v| v.confidence),
+            match_value: pose.map(|e| e.best_value),
         });
         bar.inc(1);
     }
@@ -407,6 +864,9 @@ fn summarise(
             rows.iter().filter(|r| r.accepted && r.failure).count(),
             accepted,
         ),
+        accepted_right_rate: share(rows.iter().filter(|r| r.accepted && !r.failure).count(), n),
+        bands: bands(&rows),
+        seeds: seed_errors(&rows),
         images: rows,
     }
 }

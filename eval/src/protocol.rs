@@ -375,6 +375,7 @@ pub fn settings_at(db: &ViewDatabase, distance_m: f64, light_search: usize) -> S
         unrated: false,
         roll_search_deg: acch_pose::trained_roll_search_deg(db),
         light_search,
+        verify_shape: true,
     }
 }
 

@@ -352,6 +352,7 @@ fn evaluate(
         unrated: true,
         roll_search_deg: v.roll_search_deg as f32,
         light_search: 0,
+        verify_shape: true,
     };
     let mut pose = Pose::new(db, &settings)?.with_refinement(v.refinement);
     let mut index = IndexImage::default();
@@ -375,7 +376,7 @@ fn evaluate(
             failures += 1;
             continue;
         };
-        let estimate = match pose.process(&header, &region, &mut response) {
+        let estimate = match pose.process(&header, &region, r.image.as_raw(), &mut response) {
             Ok(Outcome::Done(e)) => Some(e),
             _ => None,
         };

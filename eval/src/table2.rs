@@ -208,6 +208,7 @@ pub fn table2(
         unrated: true,
         roll_search_deg: 0.0,
         light_search: 0,
+        verify_shape: true,
     };
     // The same pose stage on the true mask, and on the segmented region
     // with the scale read off it.
@@ -288,8 +289,14 @@ pub fn table2(
                 .ok_or_else(|| EvalError::Input("recognition published no indices".into()))?;
             let given = Segmented::from_mask(*out.envelope(), truth_mask, indices, w, &mut region)
                 .map_err(|f| EvalError::Input(format!("true mask: {f}")))?;
-            let true_estimate = given
-                .and_then(|header| estimate_of(true_pose.process(&header, &region, &mut response)));
+            let true_estimate = given.and_then(|header| {
+                estimate_of(true_pose.process(
+                    &header,
+                    &region,
+                    scene.image.as_raw(),
+                    &mut response,
+                ))
+            });
             true_failures += fails_or_none(true_estimate) as usize;
             let Some(segment) = chain.last_region() else {
                 not_found += 1;
@@ -326,6 +333,7 @@ pub fn table2(
             let e = estimate_of(roi_pose.process(
                 &segmented,
                 chain.payload(StageId::Segmentation),
+                scene.image.as_raw(),
                 &mut response,
             ));
             roi_failures += fails_or_none(e) as usize;

@@ -32,7 +32,7 @@ pub const CONFIDENCE_SEED_BASE: u64 = 1_000_000;
 
 /// Revision of the default training recipe; part of cached databases'
 /// names so that a changed recipe retrains instead of reusing a stale file.
-pub const TRAINING_REVISION: u32 = 7;
+pub const TRAINING_REVISION: u32 = 8;
 
 /// Seeds of the validation scenes the network's input is chosen on start
 /// here: disjoint from the training scenes' and from every protocol's test
@@ -88,6 +88,9 @@ pub struct RenderedTraining {
     /// spaced from the training light's (1: that one only); each view's
     /// histogram is the mean over them, the palette sees them all.
     pub light_directions: usize,
+    /// The turns that leave the object looking the same: its shape's
+    /// candidates that differ only by one are not rivals.
+    pub symmetry: acch_shape::Symmetry,
 }
 
 /// How the confidence-training (and validation) scenes are taken: their
@@ -154,6 +157,7 @@ impl Default for RenderedTraining {
             seed: 0,
             scenes: ConfidenceScenes::default(),
             light_directions: 1,
+            symmetry: acch_shape::Symmetry::none(),
         }
     }
 }
@@ -186,7 +190,16 @@ pub fn train_rendered(
         .map(|r| protocol::labelled(r, training.distance))
         .collect();
     let distance_m = training.distance * object.radius_m();
-    train_views(object.name(), distance_m as f32, &labelled, config)
+    let mut db = train_views(object.name(), distance_m as f32, &labelled, config)?;
+    add_shape(&mut db, object, &training.symmetry);
+    Ok(db)
+}
+
+/// Records `object`'s shape over the default grid ([`acch_shape::default_grid`])
+/// and its `symmetry` in `db`.
+pub fn add_shape(db: &mut ViewDatabase, object: &Object, symmetry: &acch_shape::Symmetry) {
+    let model = acch_shape::ShapeModel::train(object, &acch_shape::default_grid());
+    acch_shape::store(db, &model, symmetry);
 }
 
 /// The training views of `object` as `training` renders them.
@@ -260,6 +273,7 @@ pub fn unrated_chain(
         unrated: true,
         roll_search_deg: roll_search_deg as f32,
         light_search,
+        verify_shape: true,
     };
     let mut stages = Stages::new(db, &settings)?;
     stages.confidence = acch_pipeline::stages::BySet::sharp_only(Confidence::unrated(db));
@@ -283,6 +297,12 @@ pub fn confidence_samples(
     scenes: ConfidenceScenes,
 ) -> Result<Vec<ConfidenceSample>, EvalError> {
     let params = acch_confidence::FeatureParams::default();
+    // The network rates the colour histograms' response: its estimates are
+    // theirs alone, labelled by the truth (the shape plays no part, and
+    // the training scenes run faster without it).
+    let mut colour_only = db.clone();
+    colour_only.sections.remove(acch_shape::SHAPE_SECTION);
+    let db = &colour_only;
     let light_search = if scenes.imaging {
         acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH
     } else {
@@ -705,10 +725,36 @@ pub fn train_object(
     let Some((scenes, input)) = confidence.filter(|(n, _)| *n > 0) else {
         return Ok((db, None));
     };
+    match train_network(&mut db, object, training, scenes, input) {
+        // Every training estimate right (or every one wrong): no network
+        // can be learned, and the shape judges without one.
+        Err(EvalError::Confidence(acch_confidence::ConfidenceError::OneClass {
+            reliable,
+            unreliable,
+        })) if acch_shape::stored(&db).is_ok_and(|s| s.is_some()) => {
+            eprintln!(
+                "acch: no confidence network for '{}' ({reliable} right and {unreliable} wrong training estimates: nothing to learn from); its shape judges every estimate",
+                object.name()
+            );
+            Ok((db, None))
+        }
+        other => other.map(|choice| (db, choice)),
+    }
+}
+
+/// Trains `db`'s confidence network on `scenes` per background with
+/// `input`; returns the choice of input when it was `Auto`.
+fn train_network(
+    db: &mut ViewDatabase,
+    object: &Arc<Object>,
+    training: &RenderedTraining,
+    scenes: usize,
+    input: ConfidenceInput,
+) -> Result<Option<ConfidenceChoice>, EvalError> {
     match input {
         ConfidenceInput::Auto => {
             let (choice, model, _) = choose_confidence_input(
-                &db,
+                db,
                 object,
                 scenes,
                 training.distance,
@@ -716,12 +762,12 @@ pub fn train_object(
                 training.seed,
             )?;
             tracing::info!("{choice}");
-            model.store(&mut db);
-            Ok((db, Some(choice)))
+            model.store(db);
+            Ok(Some(choice))
         }
         ConfidenceInput::Only(kind) => {
             let samples = confidence_samples(
-                &db,
+                db,
                 object,
                 scenes,
                 CONFIDENCE_SEED_BASE,
@@ -736,8 +782,8 @@ pub fn train_object(
                 reliable,
                 samples.len() - reliable
             );
-            train_confidence(&mut db, &samples, kind, training.seed)?;
-            Ok((db, None))
+            train_confidence(db, &samples, kind, training.seed)?;
+            Ok(None)
         }
     }
 }
@@ -865,6 +911,14 @@ pub struct Recipe {
     /// Views and frames smoothed before quantisation
     /// ([`acch_core::smooth`]; off: the paper's raw pixels).
     pub smoothing: Smoothing,
+    /// Training views at every 10° of elevation from this one up to 90°
+    /// (every 10° of azimuth) instead of the paper's grid: where a real
+    /// camera looks from (a dataset's range of views).
+    pub lowest_theta_deg: Option<u8>,
+    /// The training distance, object radii (default
+    /// [`DEFAULT_DISTANCE`]): where a real camera stands, so recognition's
+    /// window has the object's size.
+    pub distance_radii: Option<f64>,
 }
 
 impl Default for Recipe {
@@ -875,6 +929,8 @@ impl Default for Recipe {
             roll_search_deg: 0.0,
             light_directions: 1,
             smoothing: Smoothing::Off,
+            lowest_theta_deg: None,
+            distance_radii: None,
         }
     }
 }
@@ -910,7 +966,27 @@ impl Recipe {
                 "--confidence-imaging and --light-directions: one at a time".into(),
             ));
         }
+        if self.lowest_theta_deg.is_some_and(|t| t > 90) {
+            return Err(EvalError::Input(
+                "the lowest training elevation must be at most 90°".into(),
+            ));
+        }
+        if let Some(d) = self.distance_radii {
+            acch_capture::check_distance(d)?;
+        }
         Ok(())
+    }
+
+    /// The training views: the paper's grid, or every 10° from the lowest
+    /// elevation.
+    fn views(&self) -> ViewSpec {
+        match self.lowest_theta_deg {
+            None => PAPER_GRID.parse().expect("the paper grid parses"),
+            Some(lowest) => ViewSpec::Grid {
+                thetas_deg: (lowest..=90).step_by(10).map(f64::from).collect(),
+                phi_step_deg: 10.0,
+            },
+        }
     }
 
     /// The file's suffix after the default one's stem ("" for the default).
@@ -927,6 +1003,12 @@ impl Recipe {
         }
         if self.smoothing != Smoothing::Off {
             s += "-smoothed";
+        }
+        if let Some(t) = self.lowest_theta_deg {
+            s += &format!("-from{t}deg");
+        }
+        if let Some(d) = self.distance_radii {
+            s += &format!("-at{d:.1}r");
         }
         s
     }
@@ -971,14 +1053,14 @@ pub fn cached_recipe_database(
         smoothing: recipe.smoothing,
         ..TrainConfig::default()
     };
-    cached_with(
-        object,
-        path,
-        &recipe.what(),
-        &config,
+    let training = RenderedTraining {
+        views: recipe.views(),
+        distance: recipe.distance_radii.unwrap_or(DEFAULT_DISTANCE),
         scenes,
-        recipe.light_directions,
-    )
+        light_directions: recipe.light_directions,
+        ..RenderedTraining::default()
+    };
+    cached_with(object, path, &recipe.what(), &config, training)
 }
 
 /// The default database of a built-in object and the file it is cached
@@ -1023,25 +1105,32 @@ pub fn cached_roll_database(
     cached_recipe_database(object, dir, recipe)
 }
 
-/// The database of `object` cached at `path`, or trained with the default
-/// recipe, confidence `scenes` and the training views lit from
-/// `light_directions` directions on first use and cached there.
+/// The database of `object` cached at `path`, or trained by `training`
+/// on first use and cached there.
 fn cached_with(
     object: &Arc<Object>,
     path: PathBuf,
     what: &str,
     config: &TrainConfig,
-    scenes: ConfidenceScenes,
-    light_directions: usize,
+    training: RenderedTraining,
 ) -> Result<(ViewDatabase, PathBuf), EvalError> {
     let dir = path.parent().map(PathBuf::from).unwrap_or_default();
-    let training = RenderedTraining {
-        scenes,
-        light_directions,
-        ..RenderedTraining::default()
-    };
     if path.exists() {
         match ViewDatabase::load(&path) {
+            Ok(mut db)
+                if acch_pose::view_maps(&db).is_some()
+                    && !matches!(acch_shape::stored(&db), Ok(Some(_))) =>
+            {
+                eprintln!(
+                    "acch: adding the shape to the cached {what}database of '{}' (trained before \
+                     this build's shapes; {})",
+                    object.name(),
+                    path.display()
+                );
+                add_shape(&mut db, object, &training.symmetry);
+                db.save(&path)?;
+                return Ok((db, path));
+            }
             Ok(db) if acch_pose::view_maps(&db).is_some() => return Ok((db, path)),
             Ok(mut db) => {
                 eprintln!(

@@ -90,7 +90,7 @@ impl Chain {
     /// each stage's start and end; capture's times are the caller's.
     pub fn process(&mut self, frame: &FrameHeader, rgb: &[u8]) -> Seeded {
         let recognised = self.recognise(frame, rgb);
-        self.finish(&recognised)
+        self.finish(&recognised, rgb)
     }
 
     /// Recognition alone on frame `frame`: the window, before the later
@@ -102,6 +102,7 @@ impl Chain {
             s,
             frame,
             rgb,
+            &[],
             &mut self.buffers[0],
             now_ns(),
             &mut self.counters[0],
@@ -128,16 +129,16 @@ impl Chain {
 
     /// Segmentation, pose, confidence and seeding on what
     /// [`recognise`](Self::recognise) returned for the last frame (its
-    /// detection may since have been withdrawn).
-    pub fn finish(&mut self, recognised: &Recognised) -> Seeded {
+    /// detection may since have been withdrawn), whose pixels are `rgb`.
+    pub fn finish(&mut self, recognised: &Recognised, rgb: &[u8]) -> Seeded {
         let [rec, seg, pose] = &mut self.buffers;
         let [_, c_seg, c_pose, c_conf, c_seed] = &mut self.counters;
         let s = &mut self.stages;
         let r = recognised;
-        let g = step(&mut s.segmentation, r, rec, seg, now_ns(), c_seg);
-        let p = step(&mut s.pose, &g, seg, pose, now_ns(), c_pose);
-        let c = step(&mut s.confidence, &p, pose, &mut [], now_ns(), c_conf);
-        let out = step(&mut s.seeding, &c, &[], &mut [], now_ns(), c_seed);
+        let g = step(&mut s.segmentation, r, rec, &[], seg, now_ns(), c_seg);
+        let p = step(&mut s.pose, &g, seg, rgb, pose, now_ns(), c_pose);
+        let c = step(&mut s.confidence, &p, pose, &[], &mut [], now_ns(), c_conf);
+        let out = step(&mut s.seeding, &c, &[], &[], &mut [], now_ns(), c_seed);
         self.last = Some(out);
         out
     }

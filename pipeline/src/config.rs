@@ -143,6 +143,12 @@ pub struct PipelineConfig {
     /// objects it makes wrong estimates that are accepted
     /// (docs/accuracy.md).
     pub light_search_per_frame: usize,
+    /// Search, fit and verify the object's shape when its database holds
+    /// it (true, the default). False judges by the colour rules alone, as
+    /// the paper does: for printed objects that touch or hide each other,
+    /// whose regions the shape cannot explain, at the risk real
+    /// photographs showed (docs/real-photographs.md).
+    pub verify_shape: bool,
     /// Frames queued for each reader of the frame stream.
     pub frame_history: usize,
     /// Width of the synthetic camera's frames, pixels.
@@ -271,6 +277,7 @@ impl Default for PipelineConfig {
             camera_roll_deg: 0.0,
             camera_shutter_ms: 0.0,
             light_search_per_frame: 0,
+            verify_shape: true,
             camera_exposure: 1.0,
             camera_noise_sigma: 0.0,
             camera_blur_sigma: 0.0,
@@ -993,6 +1000,7 @@ impl PipelineConfig {
             unrated: self.unrated,
             roll_search_deg: self.roll_search(db),
             light_search: self.light_search_per_frame,
+            verify_shape: self.verify_shape,
         })
     }
 

@@ -177,6 +177,16 @@ pub struct ResultJson<'a> {
     pub detection_margin: Option<f32>,
     /// The best view's match value, when rated.
     pub match_value: Option<f32>,
+    /// The least detection margin an accepted estimate has, when rated
+    /// ([`acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN`]): the faint
+    /// rule's bars travel with every verdict, so a reader judges it by the
+    /// pipeline's own numbers.
+    pub min_accepted_detection_margin: Option<f32>,
+    /// Below this detection margin... ([`acch_confidence::MIN_CLEAR_DETECTION_MARGIN`])
+    pub min_clear_detection_margin: Option<f32>,
+    /// ...and this best match value an estimate is faint
+    /// ([`acch_confidence::MIN_CLEAR_MATCH_VALUE`]).
+    pub min_clear_match_value: Option<f32>,
     /// Whether the estimate was rejected as faint, when rated: detection
     /// margin below [`acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN`] (under
     /// recognition's threshold), or below
@@ -184,6 +194,27 @@ pub struct ResultJson<'a> {
     /// below [`acch_confidence::MIN_CLEAR_MATCH_VALUE`], whatever its
     /// confidence (the object may not be in view).
     pub faint: Option<bool>,
+    /// How the shape took part, when rated: 1 it chose the estimate (its
+    /// rules judged it), 2 it fitted the colours' estimate (the colour
+    /// rules judged it, with its contour on the region's edge), 0 none.
+    pub verified: Option<u32>,
+    /// Share of the fitted contour on the region's edge, when verified.
+    pub region_edge: Option<f32>,
+    /// The least share accepted, when verified.
+    pub min_region_edge: Option<f32>,
+    /// The fitted silhouette against the region (intersection over
+    /// union), when verified.
+    pub overlap: Option<f32>,
+    /// The least overlap accepted, when verified.
+    pub min_overlap: Option<f32>,
+    /// The fit's score over its best distinct rival's, when verified
+    /// (null: no distinct candidate).
+    pub shape_margin: Option<f32>,
+    /// The least margin accepted, when verified.
+    pub min_shape_margin: Option<f32>,
+    /// The object's pose the shape fitted, when verified: camera from
+    /// object, translation (metres) and rotation (x, y, z, w).
+    pub fitted_pose: Option<([f32; 3], [f32; 4])>,
     /// Time stamps.
     pub stamp: Stamp,
     /// Whether recognition found the object.
@@ -296,6 +327,30 @@ impl<'a> ResultJson<'a> {
                 .filter(|m| m.is_finite()),
             match_value: verdict.map(|v| v.match_value),
             faint: verdict.map(|v| v.faint()),
+            min_accepted_detection_margin: verdict
+                .map(|_| acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN),
+            min_clear_detection_margin: verdict
+                .map(|_| acch_confidence::MIN_CLEAR_DETECTION_MARGIN),
+            min_clear_match_value: verdict.map(|_| acch_confidence::MIN_CLEAR_MATCH_VALUE),
+            verified: verdict.map(|v| v.verified),
+            region_edge: verdict.filter(|v| v.verified > 0).map(|v| v.region_edge),
+            min_region_edge: verdict
+                .filter(|v| v.verified > 0)
+                .map(|v| v.min_region_edge),
+            overlap: verdict.filter(|v| v.verified > 0).map(|v| v.overlap),
+            min_overlap: verdict.filter(|v| v.verified > 0).map(|v| v.min_overlap),
+            shape_margin: verdict
+                .filter(|v| v.verified > 0)
+                .map(|v| v.shape_margin)
+                .filter(|m| m.is_finite()),
+            min_shape_margin: verdict
+                .filter(|v| v.verified > 0)
+                .map(|v| v.min_shape_margin),
+            fitted_pose: m
+                .pose()
+                .done()
+                .and_then(|p| p.shape.done())
+                .map(|f| (f.translation_m, f.rotation)),
             stamp,
             found: m.detection().done().is_some(),
             roi: m.region().done().map(|r| r.to_array()),

@@ -162,7 +162,7 @@ impl MultiChain {
         }
         each_lane(self.pool.as_ref(), &mut self.lanes, |_, lane| {
             let r = lane.recognised;
-            let _ = lane.chain.finish(&r);
+            let _ = lane.chain.finish(&r, rgb);
         });
         for (out, lane) in self.seeded.iter_mut().zip(&self.lanes) {
             *out = lane.chain.last().expect("every lane just ran");

@@ -104,7 +104,9 @@ pub struct NodeCounters {
     /// full queue lost its oldest sample) or never produced.
     pub input_gaps: u64,
     /// Inputs whose frame copy never arrived (copy transport): dropped
-    /// rather than processed without pixels.
+    /// rather than processed without pixels; for a stage that reads the
+    /// frame beside its input, inputs whose frame had left the queue
+    /// (processed without it).
     pub frames_missing: u64,
     /// Inputs whose sequence was not above the previous one (a source that
     /// restarted its numbering).
@@ -202,6 +204,13 @@ pub fn run_stage<S: Stage>(
         .then(|| copy::FrameReceiver::bind(&copy::socket_path(cfg), cfg.frame_history))
         .transpose()?;
     let input = ipc.input::<S::Input>(spec, Wake::Word)?;
+    // A stage that reads the frame beside its input (pose) takes it from
+    // the frame stream, in place: the frame of a result's sequence was
+    // published before the result, so it is queued when the result comes.
+    let frames = (S::READS_FRAME && id != StageId::Recognition)
+        .then(|| ipc.input::<FrameHeader>(streams::frames(cfg.frame_history), Wake::Never))
+        .transpose()?;
+    let mut held: Option<acch_ipc::Received<FrameHeader>> = None;
     let output = ipc.output::<S::Output>(streams::results(id), stage.max_payload())?;
     let mut locator = ShmLocator::new();
     announce_ready(&ipc, id as usize)?;
@@ -239,6 +248,31 @@ pub fn run_stage<S: Stage>(
                     (payload, received)
                 }
             };
+            let pixels: &[u8] = match &frames {
+                None => &[],
+                Some(f) => {
+                    while held
+                        .as_ref()
+                        .is_none_or(|h| h.user_header().envelope.frame.sequence < sequence)
+                    {
+                        match f.receive()? {
+                            Some(s) => held = Some(s),
+                            None => break,
+                        }
+                    }
+                    match &held {
+                        Some(h) if h.user_header().envelope.frame.sequence == sequence => {
+                            h.payload()
+                        }
+                        _ => {
+                            // Dropped from the frame queue: the stage goes
+                            // on without pixels (pose unverified).
+                            counters.frames_missing += 1;
+                            &[]
+                        }
+                    }
+                }
+            };
             let mut sent = S::Output::default();
             output
                 .send_in_place(len, |out, h| {
@@ -246,6 +280,7 @@ pub fn run_stage<S: Stage>(
                         &mut stage,
                         &header,
                         payload,
+                        pixels,
                         out,
                         received,
                         &mut counters.stage,

@@ -28,12 +28,21 @@ pub trait Stage {
     /// memory is sized from it up front.
     fn max_payload(&self) -> usize;
 
-    /// Processes one frame: reads `input` and its `payload`, writes its own
-    /// payload into `out` (`max_payload()` bytes) and returns its part.
+    /// Whether it reads the frame's pixels beside its upstream's payload
+    /// (recognition reads them as its payload; pose reads them to fit the
+    /// object's shape to the image): a stage process then reads the frame
+    /// stream too.
+    const READS_FRAME: bool = false;
+
+    /// Processes one frame: reads `input` and its `payload` (and, when it
+    /// [reads the frame](Stage::READS_FRAME), the frame's packed RGB
+    /// `frame`, else empty), writes its own payload into `out`
+    /// (`max_payload()` bytes) and returns its part.
     fn process(
         &mut self,
         input: &Self::Input,
         payload: &[u8],
+        frame: &[u8],
         out: &mut [u8],
     ) -> Result<Self::Part, Fault>;
 
@@ -118,19 +127,22 @@ pub fn step<S: Stage>(
     stage: &mut S,
     input: &S::Input,
     payload: &[u8],
+    frame: &[u8],
     out: &mut [u8],
     received_ns: u64,
     counters: &mut StageCounters,
 ) -> S::Output {
-    let part = stage.process(input, payload, out).unwrap_or_else(|f| {
-        counters.fault(f);
-        tracing::debug!(
-            "{}: frame {}: {f}",
-            S::ID.name(),
-            input.envelope().frame.sequence
-        );
-        S::Part::from(f)
-    });
+    let part = stage
+        .process(input, payload, frame, out)
+        .unwrap_or_else(|f| {
+            counters.fault(f);
+            tracing::debug!(
+                "{}: frame {}: {f}",
+                S::ID.name(),
+                input.envelope().frame.sequence
+            );
+            S::Part::from(f)
+        });
     if let Some(f) = S::fault_in(&part) {
         counters.fault(f);
     }

@@ -5,9 +5,10 @@
 use crate::wire::StageId;
 use acch_ipc::StreamSpec;
 
-/// Readers of the frame stream: recognition, the viewer, the recorder and
-/// the ROS 2 image publisher of the seeding process.
-const FRAME_SUBSCRIBERS: usize = 4;
+/// Readers of the frame stream: recognition, pose (which fits the object's
+/// shape to the pixels), the viewer, the recorder and the ROS 2 image
+/// publisher of the seeding process.
+const FRAME_SUBSCRIBERS: usize = 5;
 /// Readers of a stage's results: the next stage (or, for seeding's, a
 /// free-running replay's capture), the launcher, the viewer and the
 /// recorder.

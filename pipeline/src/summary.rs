@@ -305,6 +305,7 @@ mod tests {
                 map_rival: f32::NEG_INFINITY,
                 detection_margin: f32::INFINITY,
                 match_value: 1.0,
+                shape: None,
             };
             let rules = Rules {
                 max_rival: 1.0,
@@ -331,12 +332,14 @@ mod tests {
                 map_rival: v.map_rival,
                 detection_margin: 1.1,
                 match_value: 0.5,
+                shape: None,
             };
             let rules = Rules {
                 threshold: v.threshold,
                 max_rival: v.max_rival,
                 phi_plateau_limit_deg: v.phi_plateau_limit_deg,
                 max_map_rival: v.max_map_rival,
+                ..Rules::with_threshold(v.threshold)
             };
             m.rated.rating = Rating::Rated(Verdict::new(evidence, rules));
             m.seeding.seed = Outcome::Skipped;

@@ -58,6 +58,7 @@ fn settings(unrated: bool) -> StageSettings {
         unrated,
         roll_search_deg: 0.0,
         light_search: 0,
+        verify_shape: true,
     }
 }
 
@@ -72,6 +73,7 @@ fn posed() -> Posed {
             best_view: 3,
             roll_deg: 0.0,
             map_rival: -0.2,
+            shape: Outcome::Nothing,
         }),
         ..Default::default()
     };
@@ -132,7 +134,15 @@ fn the_stage_rejects_an_estimate_on_a_broad_crest_in_azimuth() {
         let bytes: Vec<u8> = response.iter().flat_map(|v| v.to_ne_bytes()).collect();
         let mut confidence = Confidence::new(&db, &settings(false)).unwrap();
         let mut counters = StageCounters::new(StageId::Confidence);
-        let rated = step(&mut confidence, &posed(), &bytes, &mut [], 0, &mut counters);
+        let rated = step(
+            &mut confidence,
+            &posed(),
+            &bytes,
+            &[],
+            &mut [],
+            0,
+            &mut counters,
+        );
         assert_eq!(counters.total_faults(), 0);
         rated.rating.verdict().expect("rated")
     };
@@ -169,6 +179,7 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
         &mut confidence,
         &posed(),
         &response,
+        &[],
         &mut [],
         0,
         &mut counters,
@@ -185,15 +196,39 @@ fn a_response_of_the_wrong_length_is_a_counted_fault_not_an_acceptance() {
     assert_eq!(counters.total_faults(), 0);
     // One value short: a fault, counted, not accepted, not seeded.
     let short = &response[..4 * (views - 1)];
-    let rated = step(&mut confidence, &posed(), short, &mut [], 0, &mut counters);
+    let rated = step(
+        &mut confidence,
+        &posed(),
+        short,
+        &[],
+        &mut [],
+        0,
+        &mut counters,
+    );
     assert_eq!(rated.rating, Rating::Failed(Fault::Response));
     assert_eq!(counters.faults_of(Fault::Response), 1);
-    let seeded = step(&mut seeding, &rated, &[], &mut [], 0, &mut seed_counters);
+    let seeded = step(
+        &mut seeding,
+        &rated,
+        &[],
+        &[],
+        &mut [],
+        0,
+        &mut seed_counters,
+    );
     assert!(!seeded.accepted());
     assert!(seeded.seed().is_none());
     // A response of values the network cannot rate (not finite): the same.
     let nan: Vec<u8> = (0..views).flat_map(|_| f32::NAN.to_ne_bytes()).collect();
-    let rated = step(&mut confidence, &posed(), &nan, &mut [], 0, &mut counters);
+    let rated = step(
+        &mut confidence,
+        &posed(),
+        &nan,
+        &[],
+        &mut [],
+        0,
+        &mut counters,
+    );
     assert_eq!(rated.rating, Rating::Failed(Fault::Response));
     assert_eq!(counters.faults_of(Fault::Response), 2);
 }
@@ -216,10 +251,18 @@ fn a_far_view_matching_as_well_is_rejected_whatever_the_network_says() {
     let mut counters = StageCounters::new(StageId::Confidence);
     let bytes = |r: &[f32]| -> Vec<u8> { r.iter().flat_map(|v| v.to_ne_bytes()).collect() };
     let mut rate = |confidence: &mut Confidence, r: &[f32]| {
-        step(confidence, &posed(), &bytes(r), &mut [], 0, &mut counters)
-            .rating
-            .verdict()
-            .expect("rated")
+        step(
+            confidence,
+            &posed(),
+            &bytes(r),
+            &[],
+            &mut [],
+            0,
+            &mut counters,
+        )
+        .rating
+        .verdict()
+        .expect("rated")
     };
     // One peak over a floor: every rating clears a threshold of 0.
     let mut response = vec![0.1f32; views];
@@ -282,10 +325,18 @@ fn a_faint_detection_matched_weakly_is_rejected_whatever_the_network_says() {
         if let Outcome::Done(p) = &mut input.pose {
             p.best_value = best_value;
         }
-        step(&mut confidence, &input, &bytes, &mut [], 0, &mut counters)
-            .rating
-            .verdict()
-            .expect("rated")
+        step(
+            &mut confidence,
+            &input,
+            &bytes,
+            &[],
+            &mut [],
+            0,
+            &mut counters,
+        )
+        .rating
+        .verdict()
+        .expect("rated")
     };
     // Found 1.1x over recognition's threshold, best match 0.5: the object
     // may not be in view.
@@ -320,7 +371,7 @@ fn the_stage_rejects_an_estimate_another_view_places_clearly_better() {
         if let Outcome::Done(p) = &mut input.pose {
             p.map_rival = map_rival;
         }
-        step(confidence, &input, &bytes, &mut [], 0, &mut counters)
+        step(confidence, &input, &bytes, &[], &mut [], 0, &mut counters)
             .rating
             .verdict()
             .expect("rated")

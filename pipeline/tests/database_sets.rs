@@ -44,6 +44,7 @@ fn settings() -> StageSettings {
         unrated: true,
         roll_search_deg: 0.0,
         light_search: 0,
+        verify_shape: true,
     }
 }
 
@@ -195,7 +196,7 @@ fn a_frame_for_a_set_a_stage_does_not_hold_is_a_counted_fault() {
     let mut recognised = chain.recognise(&header, &rgb);
     assert!(recognised.detection.done().is_some(), "fruitbox is in view");
     recognised.envelope_mut().imaging.set = DatabaseSet::Smoothed;
-    let out = chain.finish(&recognised);
+    let out = chain.finish(&recognised, &rgb);
     assert!(out.region().done().is_none());
     assert_eq!(chain.counters()[1].faults_of(Fault::Header), 1);
 }

@@ -34,6 +34,7 @@ fn settings(object: &Object) -> StageSettings {
         unrated: true,
         roll_search_deg: 0.0,
         light_search: 0,
+        verify_shape: true,
     }
 }
 
@@ -143,6 +144,7 @@ fn sharing_one_quantisation_pass_changes_nothing_a_lane_computes() {
                     db,
                     StageSettings {
                         light_search,
+                        verify_shape: true,
                         ..settings(o)
                     },
                 )

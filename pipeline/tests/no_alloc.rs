@@ -177,6 +177,7 @@ fn the_chain_and_the_json_allocate_nothing_once_warm() {
         // the estimator's own buffers.
         roll_search_deg: 45.0,
         light_search: 0,
+        verify_shape: true,
     };
     let mut chain = Chain::build(&db, &settings).unwrap();
     let mut json = JsonWriter::default();

@@ -102,6 +102,7 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
                 unrated: true,
                 roll_search_deg: acch_pose::trained_roll_search_deg(&db),
                 light_search: 0,
+                verify_shape: true,
             };
             let mut chain = Chain::build(&db, &settings)?;
             let k = Intrinsics::from(&sized_intrinsics(w, h));

@@ -3,7 +3,7 @@
 
 use super::common::{HistogramArgs, ObjectArgs};
 use acch_capture::UpAxis;
-use acch_eval::bop::{self, BOP_UNIT_M, ModelFrame};
+use acch_eval::bop::{self, BOP_UNIT_M};
 use acch_eval::dataset::{self, DatasetOptions, Segment};
 use acch_eval::{multi, robust, roll, sequence, table1, table2};
 use acch_pipeline::config::SmoothingChoice;
@@ -197,6 +197,20 @@ pub struct EvalArgs {
     /// object's, trained on first use and cached.
     #[arg(long, value_name = "FILE.acchdb")]
     db: Option<PathBuf>,
+    /// --bop: the object's symmetry, when the dataset's models_info.json
+    /// lists none: AXIS:N (every 1/N turn about the model's x, y or z
+    /// axis through its bounding-box centre looks the same; z:2 for a half
+    /// turn) or AXIS:inf. An estimate right for any of the poses it makes
+    /// of the annotated one is right, as BOP's metrics score it.
+    #[arg(long, value_name = "SPEC", requires = "bop")]
+    symmetry: Option<String>,
+    /// --bop: also write every estimate with a 6-DOF pose, accepted or
+    /// not, in the BOP challenge's results format
+    /// (scene_id,im_id,obj_id,score,R,t,time; R row-major model to camera,
+    /// t in mm). The score is the one acch accepts by: accepted ones score
+    /// at least 1.
+    #[arg(long, value_name = "FILE.csv", requires = "bop")]
+    bop_results: Option<PathBuf>,
 }
 
 /// Where `acch eval --bop/--labels` takes the object from.
@@ -419,6 +433,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
                 light_directions: args.light_directions as usize,
                 smoothing: args.histogram.smoothing.fixed(),
                 imaging: args.confidence_imaging,
+                ..Default::default()
             };
             acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)
         })
@@ -444,6 +459,8 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
         roll_search_deg: args.roll_search_deg.map(|d| d as f32),
         light_search: args.light_search,
     };
+    let mut symmetry = None;
+    let mut bop_model = None;
     let (images, source, object) = if let Some(dir) = &args.bop {
         let id_text = args.object.object.as_deref().ok_or_else(|| {
             anyhow::anyhow!("--bop needs --object ID, the BOP obj_id of the object to evaluate")
@@ -451,23 +468,42 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
         let obj_id: u32 = id_text.parse().with_context(|| {
             format!("--object {id_text}: with --bop the object is BOP's numeric obj_id")
         })?;
-        let info = bop::read_model_info(dir, obj_id)?;
+        let (info, info_derived) = bop::model_info(dir, obj_id)?;
         let up = args.object.mesh_up.unwrap_or(UpAxis::PosZ);
-        let frame = ModelFrame {
-            up,
-            centre_mm: info.centre(),
+        let path = bop::find_model(dir, obj_id);
+        let model = acch_capture::Object::load_mesh(&path, up)
+            .with_context(|| format!("loading the model {}", path.display()))?
+            .with_mesh_unit_m(BOP_UNIT_M)?;
+        let declared = match &args.symmetry {
+            Some(spec) => acch_shape::Symmetry::parse(spec)?,
+            None => bop::symmetry_of_model(&info, &model),
         };
-        let images = dataset::from_bop(dir, &args.split, obj_id, &frame)?;
+        let symmetry = symmetry.insert(declared);
+        let cache = acch_eval::train::cache_dir(None);
+        let (images, mut derived) =
+            dataset::from_bop(dir, &args.split, obj_id, &model, symmetry, &cache)?;
+        if info_derived {
+            derived.insert(
+                0,
+                format!(
+                    "object {obj_id}'s diameter and bounding box from its model (no models_info.json){}",
+                    if symmetry.is_none() {
+                        "; no symmetry (none declared with --symmetry)"
+                    } else {
+                        ""
+                    }
+                ),
+            );
+        }
+        for line in &derived {
+            eprintln!("derived: {line}");
+        }
+        let model = Arc::new(model);
+        bop_model = Some((obj_id, Arc::clone(&model)));
         // Without --db, the database of the dataset's model.
         let object = match &args.db {
             Some(_) => None,
-            None => {
-                let path = bop::model_path(dir, obj_id);
-                let object = acch_capture::Object::load_mesh(&path, up)
-                    .with_context(|| format!("loading the model {}", path.display()))?
-                    .with_mesh_unit_m(BOP_UNIT_M)?;
-                Some(Arc::new(object))
-            }
+            None => Some(model),
         };
         let source = format!("bop {} {}", dir.display(), args.split);
         (images, source, object)
@@ -486,15 +522,37 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
             object,
         )
     };
-    let db = match (&args.db, object) {
+    let mut db = match (&args.db, &object) {
         (Some(path), _) => acch_core::ViewDatabase::load(path)?,
-        (None, Some(object)) => acch_eval::train::cached_database(&object, None)?.0,
+        (None, Some(object)) if args.bop.is_some() => {
+            // The dataset's camera: its range of views and distance.
+            let recipe = dataset::dataset_recipe(&images, object);
+            eprintln!(
+                "derived: training views from {}° to 90° of elevation at {:.2} m, the roll searched within ±{}°: the dataset's lowest view, median distance and the roll of 95 % of its instances",
+                recipe.lowest_theta_deg.unwrap_or(45),
+                recipe
+                    .distance_radii
+                    .unwrap_or(acch_capture::DEFAULT_DISTANCE)
+                    * object.radius_m(),
+                recipe.roll_search_deg
+            );
+            acch_eval::train::cached_recipe_database(object, None, recipe)?.0
+        }
+        (None, Some(object)) => acch_eval::train::cached_database(object, None)?.0,
         (None, None) => bail!("no database: name one with --db"),
     };
+    // The dataset's (or the declared) symmetry of the object.
+    if let (Some(symmetry), Ok(Some((model, _)))) = (&symmetry, acch_shape::stored(&db)) {
+        acch_shape::store(&mut db, &model, symmetry);
+    }
     let report = dataset::evaluate(&db, &images, &options, &source)?;
     report.print();
     if let Some(path) = &args.json {
         report.write_json(path)?;
+    }
+    if let (Some(path), Some((obj_id, model))) = (&args.bop_results, &bop_model) {
+        report.write_bop_results(path, *obj_id, model)?;
+        eprintln!("wrote the BOP results to {}", path.display());
     }
     Ok(())
 }

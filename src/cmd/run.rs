@@ -315,6 +315,7 @@ impl RunArgs {
                         light_directions: cfg.light_directions,
                         smoothing: cfg.smoothing(),
                         imaging: cfg.confidence_imaging,
+                        ..Default::default()
                     };
                     Ok(acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?.1)
                 }

@@ -71,6 +71,13 @@ pub struct TrainArgs {
     /// training's did (docs/accuracy.md, "Light from another side").
     #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
     light_directions: u32,
+    /// The object's symmetry: AXIS:N when every 1/N turn about the
+    /// object's x, y or z axis (after --mesh-up) through its centre looks
+    /// the same (z:2: a half turn about its up axis), AXIS:inf for any
+    /// turn, none (the default). Two poses one turn apart are then one
+    /// pose: never each other's rival.
+    #[arg(long, value_name = "SPEC", default_value = "none", value_parser = parse_symmetry)]
+    symmetry: acch_shape::Symmetry,
     /// Confidence network input: the four response features, the whole
     /// response, or the features and the best match value (grounded).
     #[arg(long, value_enum, default_value = "auto")]
@@ -175,6 +182,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
                     light_turned: args.light_directions > 1,
                 },
                 light_directions: args.light_directions as usize,
+                symmetry: args.symmetry.clone(),
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
             let (mut db, choice) = train::train_object(&object, &config, &training, confidence)?;
@@ -207,4 +215,9 @@ pub fn run(args: TrainArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `--symmetry`.
+fn parse_symmetry(spec: &str) -> Result<acch_shape::Symmetry, String> {
+    acch_shape::Symmetry::parse(spec).map_err(|e| e.to_string())
 }

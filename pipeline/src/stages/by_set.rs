@@ -115,6 +115,7 @@ impl<P: From<Fault>> From<Fault> for Chosen<P> {
 
 impl<S: Stage> Stage for BySet<S> {
     const ID: StageId = S::ID;
+    const READS_FRAME: bool = S::READS_FRAME;
     type Input = S::Input;
     type Part = Chosen<S::Part>;
     type Output = S::Output;
@@ -128,6 +129,7 @@ impl<S: Stage> Stage for BySet<S> {
         &mut self,
         input: &S::Input,
         payload: &[u8],
+        frame: &[u8],
         out: &mut [u8],
     ) -> Result<Chosen<S::Part>, Fault> {
         let Some(meter) = &mut self.meter else {
@@ -141,7 +143,7 @@ impl<S: Stage> Stage for BySet<S> {
                 (DatabaseSet::Smoothed, None) => return Err(Fault::Header),
             };
             self.last = set;
-            let part = stage.process(input, payload, out)?;
+            let part = stage.process(input, payload, frame, out)?;
             return Ok(Chosen {
                 imaging: None,
                 part,
@@ -162,9 +164,9 @@ impl<S: Stage> Stage for BySet<S> {
         let smoothed = self.smoothed.as_mut().ok_or(Fault::Header)?;
         let part = if q.needs_smoothing() {
             imaging.set = DatabaseSet::Smoothed;
-            smoothed.process(input, payload, out)?
+            smoothed.process(input, payload, frame, out)?
         } else {
-            let part = self.sharp.process(input, payload, out)?;
+            let part = self.sharp.process(input, payload, frame, out)?;
             let window = S::object_window(&part);
             let sharpness = window.map_or(f32::NAN, |w| {
                 meter.sharpness_within(w.rect.x, w.rect.y, w.rect.width, w.rect.height)
@@ -179,7 +181,7 @@ impl<S: Stage> Stage for BySet<S> {
                 // for its blurred object is not smoothed again.
                 let mut chosen = *input;
                 chosen.envelope_mut().imaging = imaging;
-                smoothed.process(&chosen, payload, out)
+                smoothed.process(&chosen, payload, frame, out)
             };
             let blurred = acch_core::is_blurred(sharpness);
             match window {
@@ -287,6 +289,7 @@ mod tests {
             &mut self,
             input: &FrameHeader,
             _payload: &[u8],
+            _frame: &[u8],
             out: &mut [u8],
         ) -> Result<Outcome<Window>, Fault> {
             self.sent_for.push(input.envelope.imaging.smoothed_for());
@@ -350,7 +353,7 @@ mod tests {
         frame.envelope.frame.width = SIDE;
         frame.envelope.frame.height = SIDE;
         let mut out = vec![0u8; stage.max_payload()];
-        let part = stage.process(&frame, rgb, &mut out).unwrap();
+        let part = stage.process(&frame, rgb, &[], &mut out).unwrap();
         let imaging = part.imaging.expect("recognition measures");
         assert_eq!(stage.last_used().mark, out[0]);
         let asked = stage.smoothed().and_then(|s| s.sent_for.last().copied());

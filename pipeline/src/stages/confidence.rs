@@ -1,18 +1,29 @@
-//! Confidence: the database's network rates the pose stage's response; an
-//! estimate is accepted only when it is rated at or above the threshold,
-//! no view far from it in azimuth matches nearly as well (its rival at
-//! most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), the views about
-//! it do not match nearly as well over a broad crest in azimuth (their
-//! plateau under [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), no view
-//! beyond the tolerance holds the region's colours in place clearly
-//! better (its map rival at most
-//! [`acch_confidence::MAX_MAP_RIVAL`]), and it was not found under
+//! Confidence: judges each estimate by one policy over its evidence
+//! ([`Verdict::new`]).
+//!
+//! An estimate the object's shape verified (the pose stage fitted the
+//! mesh's contour to the image) is accepted only when its contour lies on
+//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), it explains
+//! the image clearly better than every candidate that would be a failure
+//! if it were right ([`acch_confidence::MIN_SHAPE_MARGIN`]), and the object
+//! was found at or above recognition's threshold. Geometry decides on real
+//! photographs, where the colour rules below accepted 90 % wrong.
+//!
+//! An unverified estimate (a database without a shape, or a frame whose
+//! pixels did not reach the pose stage) is judged by the colour
+//! histograms' response as before: rated by the database's network at or
+//! above its threshold, no view far from it matching nearly as well (its
+//! rival at most [`acch_confidence::MAX_RIVAL_RATIO`] of the best), no
+//! broad crest in azimuth (its plateau under
+//! [`acch_confidence::PHI_PLATEAU_LIMIT_DEG`]), no view beyond the
+//! tolerance holding the region's colours in place clearly better (its map
+//! rival at most [`acch_confidence::MAX_MAP_RIVAL`]), and not found under
 //! recognition's threshold, nor both faintly detected and weakly matched
 //! ([`acch_confidence::rejected_as_faint`]).
 //!
-//! A database without a network is refused unless the run is explicitly
-//! unrated ([`StageSettings::unrated`]): then every estimate is marked
-//! [`Rating::Unrated`], and nothing is accepted.
+//! A database with neither a network nor a shape is refused unless the run
+//! is explicitly unrated ([`StageSettings::unrated`]): then every estimate
+//! is marked [`Rating::Unrated`], and nothing is accepted.
 
 use super::pose::{Posed, ResponsePayload};
 use super::{BuildError, StageSettings};
@@ -46,6 +57,25 @@ pub struct Evidence {
     pub detection_margin: f32,
     /// The best view's match value.
     pub match_value: f32,
+    /// What the object's shape, fitted to the image, explains of it; `None`
+    /// when the pose stage had no shape to fit (a database without one, a
+    /// frame without pixels).
+    pub shape: Option<ShapeEvidence>,
+}
+
+/// What the shape's fit explains of the image ([`crate::stages::ShapeFit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShapeEvidence {
+    /// Share of the fitted contour on the region's edge.
+    pub region_edge: f32,
+    /// The fitted silhouette against the region, intersection over union.
+    pub overlap: f32,
+    /// The fit's score over the best score of a candidate that would fail
+    /// as an estimate of it (infinity: none did).
+    pub margin: f32,
+    /// The colour histograms' view is the estimate and the fit placed it
+    /// ([`crate::stages::ShapeFit::anchored`]).
+    pub anchored: bool,
 }
 
 /// The verdict on one estimate.
@@ -80,9 +110,33 @@ pub struct Verdict {
     pub detection_margin: f32,
     /// The best view's match value.
     pub match_value: f32,
+    /// 1 when the object's shape chose the estimate and verified it against
+    /// the image (the shape's rules then decide); 2 when the colours placed
+    /// it and the shape fitted it (the colour rules decide, and the contour
+    /// must lie on the region's edge); 0 when no shape was fitted.
+    pub verified: u32,
+    /// Share of the fitted contour on the region's edge (NaN: unverified).
+    pub region_edge: f32,
+    /// The least share accepted ([`acch_confidence::MIN_REGION_EDGE`]).
+    pub min_region_edge: f32,
+    /// The fitted silhouette against the region, intersection over union
+    /// (NaN: unverified).
+    pub overlap: f32,
+    /// The least overlap accepted ([`acch_confidence::MIN_OVERLAP`]).
+    pub min_overlap: f32,
+    /// The fit's score over its best distinct rival's (NaN: unverified).
+    pub shape_margin: f32,
+    /// The least margin accepted ([`acch_confidence::MIN_SHAPE_MARGIN`]).
+    pub min_shape_margin: f32,
+    /// Chosen by the shape (verified 1): the contour on the region's edge
+    /// and the silhouette covering the region, a clear margin over every distinct pose, and found at or above
+    /// recognition's threshold. Otherwise the colour rules:
     /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
-    /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint).
+    /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint); and
+    /// when fitted (verified 2), the contour on the region's edge too (a
+    /// region segmentation grew over part of the object is common there,
+    /// and the colours vouch for the view).
     pub accepted: bool,
 }
 
@@ -103,14 +157,57 @@ impl Verdict {
             max_map_rival: rules.max_map_rival,
             detection_margin: evidence.detection_margin,
             match_value: evidence.match_value,
+            verified: match evidence.shape {
+                None => 0,
+                Some(s) if s.anchored => 2,
+                Some(_) => 1,
+            },
+            region_edge: evidence.shape.map_or(f32::NAN, |s| s.region_edge),
+            min_region_edge: rules.min_region_edge,
+            overlap: evidence.shape.map_or(f32::NAN, |s| s.overlap),
+            min_overlap: rules.min_overlap,
+            shape_margin: evidence.shape.map_or(f32::NAN, |s| s.margin),
+            min_shape_margin: rules.min_shape_margin,
             accepted: false,
         };
-        v.accepted = evidence.confidence >= rules.threshold
+        let colour_rules = evidence.confidence >= rules.threshold
             && !v.ambiguous()
             && !v.broad()
             && !v.misplaced()
             && !v.faint();
+        v.accepted = match v.verified {
+            1 => v.shape_agrees() && v.shape_covers() && v.shape_clear() && !v.under_threshold(),
+            2 => colour_rules && v.shape_agrees(),
+            _ => colour_rules,
+        };
         v
+    }
+
+    /// Whether the fitted contour lies on the region's edge (NaN: no).
+    pub fn shape_agrees(&self) -> bool {
+        self.region_edge >= self.min_region_edge
+    }
+
+    /// Whether the fitted silhouette and the region cover each other
+    /// (NaN: no): a contour can follow the edge of part of a larger
+    /// region.
+    pub fn shape_covers(&self) -> bool {
+        self.overlap >= self.min_overlap
+    }
+
+    /// Whether the fit beats every distinct pose clearly (NaN: no).
+    pub fn shape_clear(&self) -> bool {
+        self.shape_margin >= self.min_shape_margin
+    }
+
+    /// Whether recognition found the object under its threshold (a window
+    /// from 0.7x of it is still estimated, never accepted).
+    pub fn under_threshold(&self) -> bool {
+        !matches!(
+            self.detection_margin
+                .partial_cmp(&acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN),
+            Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
+        )
     }
 
     /// Whether a far view matched too nearly as well (rejected for it,
@@ -167,6 +264,12 @@ pub struct Rules {
     /// The largest map rival accepted
     /// ([`acch_confidence::MAX_MAP_RIVAL`]).
     pub max_map_rival: f32,
+    /// The least share of a verified contour on the region's edge.
+    pub min_region_edge: f32,
+    /// The least overlap of a verified silhouette with the region.
+    pub min_overlap: f32,
+    /// The least margin of a verified fit over its best distinct rival.
+    pub min_shape_margin: f32,
 }
 
 impl Rules {
@@ -177,6 +280,9 @@ impl Rules {
             max_rival: acch_confidence::MAX_RIVAL_RATIO,
             phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
             max_map_rival: acch_confidence::MAX_MAP_RIVAL,
+            min_region_edge: acch_confidence::MIN_REGION_EDGE,
+            min_overlap: acch_confidence::MIN_OVERLAP,
+            min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
         }
     }
 }
@@ -264,15 +370,27 @@ pub struct Confidence {
     max_map_rival: f32,
     /// Views farther than this in elevation from the best are rivals too.
     rival_theta_separation_deg: f32,
+    min_region_edge: f32,
+    min_overlap: f32,
+    min_shape_margin: f32,
+    /// The explicit unrated mode: nothing is accepted, even verified.
+    unrated: bool,
 }
 
 impl Confidence {
     /// The stage for `db`: its network, or the unrated mode when the
     /// database has none and `settings.unrated` allows it.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
+        let has_shape =
+            settings.verify_shape && db.sections.contains_key(acch_shape::SHAPE_SECTION);
         let model = match Model::load(db) {
             Ok(m) => Some(m),
-            Err(acch_confidence::ConfidenceError::MissingSection) if settings.unrated => None,
+            // A database with a shape is judged by it without a network.
+            Err(acch_confidence::ConfidenceError::MissingSection)
+                if settings.unrated || has_shape =>
+            {
+                None
+            }
             Err(acch_confidence::ConfidenceError::MissingSection) => {
                 return Err(BuildError::NoConfidence {
                     object: db.object.clone(),
@@ -280,13 +398,18 @@ impl Confidence {
             }
             Err(e) => return Err(e.into()),
         };
-        Ok(Self::with_model(db, model))
+        let mut stage = Self::with_model(db, model);
+        // Nothing can judge: neither a network nor a shape.
+        stage.unrated = stage.model.is_none() && !has_shape;
+        Ok(stage)
     }
 
     /// The stage in the unrated mode, whatever the database holds (to
     /// collect the confidence network's own training data).
     pub fn unrated(db: &ViewDatabase) -> Self {
-        Self::with_model(db, None)
+        let mut stage = Self::with_model(db, None);
+        stage.unrated = true;
+        stage
     }
 
     fn with_model(db: &ViewDatabase, model: Option<Model>) -> Self {
@@ -299,6 +422,10 @@ impl Confidence {
             phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
             max_map_rival: acch_confidence::MAX_MAP_RIVAL,
             rival_theta_separation_deg: acch_confidence::Tolerance::default().theta_deg,
+            min_region_edge: acch_confidence::MIN_REGION_EDGE,
+            min_overlap: acch_confidence::MIN_OVERLAP,
+            min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
+            unrated: false,
         }
     }
 
@@ -354,32 +481,56 @@ impl Stage for Confidence {
         0
     }
 
-    fn process(&mut self, input: &Posed, payload: &[u8], _: &mut [u8]) -> Result<Rating, Fault> {
+    fn process(
+        &mut self,
+        input: &Posed,
+        payload: &[u8],
+        _: &[u8],
+        _: &mut [u8],
+    ) -> Result<Rating, Fault> {
         let Some(response) = ResponsePayload::read(input, self.views.len(), payload)? else {
             return Ok(Rating::Skipped);
         };
-        let Some(model) = &self.model else {
-            return Ok(Rating::Unrated);
-        };
-        response.copy_into(&mut self.response);
-        let confidence = model
-            .try_rate(&self.response, &self.slices, &self.views)
-            .map_err(|_| Fault::Response)?;
-        let rival = acch_confidence::rival_ratio(
-            &self.response,
-            &self.views,
-            model.feature_params().min_phi_separation_deg,
-            self.rival_theta_separation_deg,
-        )
-        .map_err(|_| Fault::Response)?;
-        let phi_plateau_deg = acch_confidence::phi_plateau_deg(
-            &self.response,
-            &self.slices,
-            &self.views,
-            acch_confidence::PLATEAU_RATIO,
-        )
-        .map_err(|_| Fault::Response)?;
         let pose = input.pose.done();
+        let shape = pose.and_then(|p| p.shape.done()).map(|f| ShapeEvidence {
+            region_edge: f.region_edge,
+            overlap: f.overlap,
+            margin: f.score - f.rival_score,
+            anchored: f.anchored == 1,
+        });
+        // The shape judges what it chose; colours that placed the object
+        // themselves (anchored) need the network too.
+        let shape_judges = shape.is_some_and(|s| !s.anchored);
+        if self.unrated || (self.model.is_none() && !shape_judges) {
+            // Nothing that can judge this estimate: a database without a
+            // network whose colours placed the object.
+            return Ok(Rating::Unrated);
+        }
+        response.copy_into(&mut self.response);
+        let (confidence, rival, phi_plateau_deg, threshold) = match &self.model {
+            Some(model) => (
+                model
+                    .try_rate(&self.response, &self.slices, &self.views)
+                    .map_err(|_| Fault::Response)?,
+                acch_confidence::rival_ratio(
+                    &self.response,
+                    &self.views,
+                    model.feature_params().min_phi_separation_deg,
+                    self.rival_theta_separation_deg,
+                )
+                .map_err(|_| Fault::Response)?,
+                acch_confidence::phi_plateau_deg(
+                    &self.response,
+                    &self.slices,
+                    &self.views,
+                    acch_confidence::PLATEAU_RATIO,
+                )
+                .map_err(|_| Fault::Response)?,
+                model.threshold(),
+            ),
+            // No network: the shape alone judges.
+            None => (f32::NAN, f32::NAN, f32::NAN, f32::NAN),
+        };
         let evidence = Evidence {
             confidence,
             rival,
@@ -392,12 +543,16 @@ impl Stage for Confidence {
                 .done()
                 .map_or(f32::INFINITY, |w| w.margin()),
             match_value: pose.map_or(f32::NAN, |p| p.best_value),
+            shape,
         };
         let rules = Rules {
-            threshold: model.threshold(),
+            threshold,
             max_rival: self.max_rival,
             phi_plateau_limit_deg: self.phi_plateau_limit_deg,
             max_map_rival: self.max_map_rival,
+            min_region_edge: self.min_region_edge,
+            min_overlap: self.min_overlap,
+            min_shape_margin: self.min_shape_margin,
         };
         Ok(Rating::Rated(Verdict::new(evidence, rules)))
     }
@@ -423,12 +578,96 @@ mod tests {
             map_rival: -0.2,
             detection_margin: f32::INFINITY,
             match_value: 0.9,
+            shape: None,
         }
     }
 
     /// The default bars at the paper's threshold.
     fn rules() -> Rules {
         Rules::with_threshold(0.8)
+    }
+
+    #[test]
+    fn a_pose_the_shape_chose_is_accepted_by_the_shapes_bars_alone() {
+        // No network (NaN confidence) and no colour evidence: the shape's
+        // evidence decides.
+        let judged = |region_edge, overlap, margin, detection_margin| {
+            Verdict::new(
+                Evidence {
+                    confidence: f32::NAN,
+                    rival: f32::NAN,
+                    detection_margin,
+                    shape: Some(ShapeEvidence {
+                        region_edge,
+                        overlap,
+                        margin,
+                        anchored: false,
+                    }),
+                    ..clear(f32::NAN, f32::NAN)
+                },
+                rules(),
+            )
+        };
+        let v = judged(0.95, 0.85, 0.5, f32::INFINITY);
+        assert!(v.accepted && v.verified == 1, "{v:?}");
+        assert!(judged(0.9, 0.7, 0.3, 1.0).accepted, "at every bar");
+        assert!(judged(0.9, 0.7, f32::INFINITY, 1.0).accepted, "no rival");
+        for (edge, overlap, margin, detection, why) in [
+            (
+                0.89,
+                0.85,
+                0.5,
+                f32::INFINITY,
+                "contour off the region's edge",
+            ),
+            (
+                0.95,
+                0.69,
+                0.5,
+                f32::INFINITY,
+                "silhouette covers too little",
+            ),
+            (0.95, 0.85, 0.29, f32::INFINITY, "a rival explains as much"),
+            (0.95, 0.85, 0.5, 0.99, "found under the threshold"),
+            (f32::NAN, 0.85, 0.5, f32::INFINITY, "no edge measured"),
+            (0.95, f32::NAN, 0.5, f32::INFINITY, "no overlap measured"),
+            (0.95, 0.85, f32::NAN, f32::INFINITY, "no margin measured"),
+        ] {
+            let v = judged(edge, overlap, margin, detection);
+            assert!(!v.accepted, "{why}: {v:?}");
+        }
+        // Anchored by the colours: the colour rules and the shape's
+        // agreement both, so no network rating means rejected.
+        let anchored = |confidence| {
+            Verdict::new(
+                Evidence {
+                    shape: Some(ShapeEvidence {
+                        region_edge: 0.95,
+                        overlap: 0.85,
+                        margin: f32::NAN,
+                        anchored: true,
+                    }),
+                    ..clear(confidence, 0.5)
+                },
+                rules(),
+            )
+        };
+        assert!(anchored(0.9).accepted && anchored(0.9).verified == 2);
+        // ...whose region may cover part of the object only.
+        let partial = Verdict::new(
+            Evidence {
+                shape: Some(ShapeEvidence {
+                    region_edge: 0.95,
+                    overlap: 0.6,
+                    margin: f32::NAN,
+                    anchored: true,
+                }),
+                ..clear(0.9, 0.5)
+            },
+            rules(),
+        );
+        assert!(partial.accepted, "{partial:?}");
+        assert!(!anchored(0.5).accepted && !anchored(f32::NAN).accepted);
     }
 
     #[test]

@@ -12,7 +12,10 @@ pub mod segmentation;
 
 pub use by_set::{BySet, Chosen};
 pub use confidence::{Confidence, Evidence, Rated, Rating, Rules, Verdict};
-pub use pose::{Pose, PoseEstimate, Posed, ResponsePayload};
+pub use pose::{
+    COLOUR_ANCHORED_FROM, Pose, PoseEstimate, Posed, ResponsePayload, ShapeFit, colour_trust,
+    fit_covariance_matrix, fit_pose, fit_view,
+};
 pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
 pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};
 pub use segmentation::{RegionPayload, Segmentation, Segmented};
@@ -50,6 +53,11 @@ pub struct StageSettings {
     /// weak or lost under the light in use ([`acch_recognition::LightSearch`]):
     /// 0 never leaves the training light; `usize::MAX` tries them all.
     pub light_search: usize,
+    /// Search, fit and verify the object's shape when the database holds
+    /// it (the default). Off, the colour rules alone judge, as in the
+    /// paper: for printed objects that touch or hide each other, whose
+    /// regions the shape cannot explain (docs/limitations.md).
+    pub verify_shape: bool,
 }
 
 impl StageSettings {
@@ -69,11 +77,13 @@ pub enum BuildError {
         /// The database's object.
         object: String,
     },
-    /// The database has no confidence network and the run is not unrated.
+    /// The database has neither a confidence network nor its object's
+    /// shape, and the run is not unrated.
     #[error(
-        "the database of '{object}' has no confidence network, so no estimate could be rated: \
-         retrain it with `acch train` (--confidence-scenes > 0), or run it unrated (--unrated: \
-         estimates are reported, none is accepted, no seed is published)"
+        "the database of '{object}' has no confidence network and no shape of its object, so no \
+         estimate could be rated: retrain it with `acch train` from the object or its mesh \
+         (--confidence-scenes > 0), or run it unrated (--unrated: estimates are reported, none \
+         is accepted, no seed is published)"
     )]
     NoConfidence {
         /// The database's object.
@@ -94,6 +104,9 @@ pub enum BuildError {
     /// The confidence network is unusable.
     #[error(transparent)]
     Confidence(#[from] acch_confidence::ConfidenceError),
+    /// The database's shape is damaged.
+    #[error("the database's shape is unreadable")]
+    Shape(#[source] acch_shape::StoredShapeError),
     /// The fusion filter's configuration is invalid.
     #[error(transparent)]
     Fusion(#[from] acch_seeding::FusionError),

@@ -12,6 +12,7 @@ use crate::wire::{Envelope, Fault, Hop, Outcome, StageId};
 use acch_core::{IndexImage, Rect, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_pose::{PoseEstimator, Refinement};
+use acch_shape::{Image, Proposal, Region, ShapeEstimate, ShapeEstimator, ShapeSettings};
 
 /// A 2-DOF pose estimate.
 #[repr(C)]
@@ -36,6 +37,49 @@ pub struct PoseEstimate {
     /// weighed (a database without colour maps), NaN when the region could
     /// not be placed.
     pub map_rival: f32,
+    /// The pose the object's shape fitted to the image, which then decides
+    /// θ, φ and the roll above; `Nothing` when the database holds no shape
+    /// or the frame's pixels did not reach the stage.
+    pub shape: Outcome<ShapeFit>,
+}
+
+/// The object's shape fitted to the image ([`acch_shape::ShapeEstimator`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, ZeroCopySend)]
+pub struct ShapeFit {
+    /// Camera-from-object rotation, a unit quaternion (x, y, z, w); the
+    /// object frame is the renderer's (z up, centred on the bounding box).
+    pub rotation: [f32; 4],
+    /// The object's centre in the camera frame, metres.
+    pub translation_m: [f32; 3],
+    /// How sharply the object's colours part from its surroundings across
+    /// the fitted contour, in [-1, 1].
+    pub separation: f32,
+    /// The fitted silhouette against the region, intersection over union.
+    pub overlap: f32,
+    /// Share of the fitted contour on the region's edge.
+    pub region_edge: f32,
+    /// Share of the fitted contour on an image edge of its direction.
+    pub contour_edges: f32,
+    /// What chose the fit among the candidates (separation plus overlap).
+    pub score: f32,
+    /// The best score of a candidate that would fail as an estimate of this
+    /// one; -inf when none did.
+    pub rival_score: f32,
+    /// Candidates fitted.
+    pub candidates: u32,
+    /// 1: the colour histograms' view is the estimate (their colours
+    /// matched the database well: [`COLOUR_ANCHORED_FROM`]) and the fit
+    /// only placed it in 6-DOF; 0: the shape chose the view and its rules
+    /// judge it.
+    pub anchored: u32,
+    /// θ, φ and roll the colour histograms estimated, degrees (NaN when
+    /// they made none).
+    pub colour_view_deg: [f32; 3],
+    /// The pose's covariance from the fit, over `(tx, ty, tz, rx, ry, rz)`
+    /// of a left perturbation in the camera frame (metres, radians; the
+    /// seed's convention, `acch_seeding`), upper triangle row by row.
+    pub covariance: [f32; 21],
 }
 
 /// Pose's header. `pose`: `Nothing` when the region held no pair of object
@@ -112,6 +156,12 @@ fn write_response(response: &[f32], out: &mut [u8]) -> Result<(), Fault> {
 /// The pose stage.
 pub struct Pose {
     estimator: PoseEstimator,
+    /// The object's shape, when the database holds one.
+    shape: Option<ShapeEstimator>,
+    /// The shape's last estimate, every candidate with its evidence.
+    last_shape: Option<ShapeEstimate>,
+    /// The camera direction of each database view.
+    view_directions: Vec<glam::DVec3>,
     /// The ROI's palette indices (the estimator takes an owned image): a
     /// buffer sized for a whole frame, so copying a crop in never allocates.
     index: IndexImage,
@@ -132,9 +182,33 @@ impl Pose {
                 db.object
             );
         }
+        let stored = if settings.verify_shape {
+            acch_shape::stored(db)
+        } else {
+            Ok(None)
+        };
+        let shape = match stored {
+            Ok(Some((model, symmetry))) => Some(ShapeEstimator::new(
+                model,
+                symmetry,
+                ShapeSettings {
+                    max_roll_deg: (settings.roll_search_deg as f64 + OFF_AXIS_ROLL_DEG).min(180.0),
+                    ..ShapeSettings::default()
+                },
+            )),
+            Ok(None) => None,
+            Err(e) => return Err(BuildError::Shape(e)),
+        };
         Ok(Pose {
             scale: settings.scale(db),
             estimator,
+            shape,
+            last_shape: None,
+            view_directions: db
+                .views()
+                .iter()
+                .map(|v| acch_shape::model::direction(v.theta_deg as f64, v.phi_deg as f64))
+                .collect(),
             index: IndexImage::new(w, h, vec![0; w as usize * h as usize]),
             refinement: Refinement::Parabolic,
         })
@@ -153,8 +227,223 @@ impl Pose {
     }
 }
 
+impl Pose {
+    /// The shape's last estimate, every candidate with its evidence (the
+    /// evaluations read it).
+    pub fn last_shape(&self) -> Option<&ShapeEstimate> {
+        self.last_shape.as_ref()
+    }
+
+    /// The shape's fit for `region` of the frame `frame` (packed RGB),
+    /// with the colour estimate's view among its candidates.
+    fn fit_shape(
+        &mut self,
+        input: &Segmented,
+        region: &RegionPayload,
+        frame: &[u8],
+        colour: Option<&acch_pose::Estimate>,
+    ) -> Outcome<ShapeFit> {
+        self.last_shape = None;
+        let Some(shape) = &mut self.shape else {
+            return Outcome::Nothing;
+        };
+        let f = &input.envelope().frame;
+        let (w, h) = (f.width as usize, f.height as usize);
+        if frame.len() != 3 * w * h {
+            return Outcome::Nothing;
+        }
+        let i = &f.intrinsics;
+        let k = acch_capture::Intrinsics {
+            width: f.width,
+            height: f.height,
+            fx: i.fx,
+            fy: i.fy,
+            cx: i.cx,
+            cy: i.cy,
+        };
+        if k.validate().is_err() {
+            return Outcome::Nothing;
+        }
+        let image = Image {
+            rgb: frame,
+            width: w,
+            height: h,
+        };
+        let roi = region.roi;
+        let region = Region {
+            mask: region.mask,
+            x0: roi.x,
+            y0: roi.y,
+            width: roi.width,
+            k: &k,
+        };
+        let proposed: Vec<[f64; 3]> = colour
+            .map(|e| vec![[e.theta_deg as f64, e.phi_deg as f64, e.roll_deg as f64]])
+            .unwrap_or_default();
+        // The colour histograms' match of a view, over their best: what
+        // tells apart views whose outlines are alike (a box's faces).
+        let response = colour.map(|_| self.estimator.response());
+        let best = response.map_or(0.0, |r| r.iter().copied().fold(0.0f32, f32::max));
+        // Colours that barely match any view (a mesh's colours against a
+        // real camera's) say little about which view it is.
+        let trust = colour.map_or(0.0, |e| colour_trust(e.best_value));
+        let directions = &self.view_directions;
+        let colour_of = |theta: f64, phi: f64| -> f32 {
+            let (Some(r), true) = (response, best > 0.0) else {
+                return 0.0;
+            };
+            let d = acch_shape::model::direction(theta, phi);
+            let mut nearest = (f64::NEG_INFINITY, 0);
+            for (i, v) in directions.iter().enumerate() {
+                let c = v.dot(d);
+                if c > nearest.0 {
+                    nearest = (c, i);
+                }
+            }
+            COLOUR_WEIGHT * trust * r[nearest.1] / best
+        };
+        let colour_fn: Option<&dyn Fn(f64, f64) -> f32> = response.map(|_| &colour_of as _);
+        let proposal = Proposal {
+            views: &proposed,
+            // Trusted colours place the object: the shape verifies them.
+            anchored: colour.is_some_and(|e| e.best_value >= COLOUR_ANCHORED_FROM),
+            colour: colour_fn,
+        };
+        let Some(s) = shape.estimate(&image, &k, &region, &proposal) else {
+            return Outcome::Nothing;
+        };
+        let best = s.best();
+        let radius_m = shape.model().radius_m;
+        let q = glam::DQuat::from_mat3(&best.pose.matrix3);
+        let t = best.pose.translation * radius_m;
+        let covariance = seed_covariance(&s.covariance, radius_m);
+        let fit = ShapeFit {
+            rotation: [q.x as f32, q.y as f32, q.z as f32, q.w as f32],
+            translation_m: [t.x as f32, t.y as f32, t.z as f32],
+            separation: best.evidence.separation,
+            overlap: best.evidence.overlap,
+            region_edge: best.evidence.region_edge,
+            contour_edges: best.evidence.contour_edges,
+            score: best.score,
+            rival_score: s.rival_score(),
+            candidates: s.scored.len() as u32,
+            anchored: u32::from(s.anchored),
+            covariance,
+            colour_view_deg: colour.map_or([f32::NAN; 3], |e| [e.theta_deg, e.phi_deg, e.roll_deg]),
+        };
+        self.last_shape = Some(s);
+        Outcome::Done(fit)
+    }
+}
+
+/// A best match value (histogram intersection) below this says the
+/// object's colours are not the database's (on LM-O's real photographs
+/// against meshes' colours: 0.22-0.53, 10th to 90th percentile; rendered
+/// printed packaging: 0.84-0.96): the views' colour matches then weigh
+/// nothing among the shape's candidates...
+pub const COLOUR_TRUSTED_FROM: f32 = 0.5;
+/// ...and from this one they weigh fully.
+pub const COLOUR_TRUSTED_AT: f32 = 0.8;
+
+/// How far beyond the roll search the shape's silhouette search rolls,
+/// degrees: an object off the optical axis looks a little rolled even to
+/// an upright camera.
+pub const OFF_AXIS_ROLL_DEG: f64 = 20.0;
+
+/// From this best match value on, the colours place the object (its view
+/// is the colour histograms' estimate, the shape fits it in 6-DOF), and
+/// the colour rules judge it: the rendered protocols' objects, printed
+/// packaging under the training light, match at 0.84-0.96; real
+/// photographs of meshes' colours at 0.22-0.53.
+pub const COLOUR_ANCHORED_FROM: f32 = 0.65;
+
+/// The weight of a trusted colour match among the shape's measures (each
+/// in [0, 1]): printed packaging's colours tell apart the faces of a box
+/// whose outlines are alike, and there they decide.
+pub const COLOUR_WEIGHT: f32 = 4.0;
+
+/// How much the colour histograms' view matches count among the shape's
+/// candidates, in [0, 1], by the best match value.
+pub fn colour_trust(best_value: f32) -> f32 {
+    ((best_value - COLOUR_TRUSTED_FROM) / (COLOUR_TRUSTED_AT - COLOUR_TRUSTED_FROM)).clamp(0.0, 1.0)
+}
+
+/// The fit's covariance over its twist `(w, v)` (`R' = exp(w) R`,
+/// `t' = t + v`, object units) as the seed's over `(t, r)` in metres: the
+/// same perturbation, reordered and scaled. Upper triangle, row by row.
+pub fn seed_covariance(twist: &[[f64; 6]; 6], radius_m: f64) -> [f32; 21] {
+    // A maps (w, v) to (dt, dr).
+    let mut a = [[0.0f64; 6]; 6];
+    for r in 0..3 {
+        a[r][3 + r] = radius_m;
+        a[3 + r][r] = 1.0;
+    }
+    let mut out = [0f32; 21];
+    let mut i = 0;
+    for r in 0..6 {
+        for c in r..6 {
+            let mut v = 0.0;
+            for p in 0..6 {
+                for q in 0..6 {
+                    v += a[r][p] * twist[p][q] * a[c][q];
+                }
+            }
+            out[i] = v as f32;
+            i += 1;
+        }
+    }
+    out
+}
+
+/// A fit's covariance as a full 6x6 matrix.
+// Indices say which triangle entry lands where, in both halves.
+#[allow(clippy::needless_range_loop)]
+pub fn fit_covariance_matrix(fit: &ShapeFit) -> [[f64; 6]; 6] {
+    let mut m = [[0.0; 6]; 6];
+    let mut i = 0;
+    for r in 0..6 {
+        for c in r..6 {
+            m[r][c] = fit.covariance[i] as f64;
+            m[c][r] = m[r][c];
+            i += 1;
+        }
+    }
+    m
+}
+
+/// θ, φ and roll of a fitted pose, degrees.
+pub fn fit_view(fit: &ShapeFit) -> [f32; 3] {
+    let v = acch_shape::view_of(&fit_pose(fit));
+    [v.theta_deg as f32, v.phi_deg as f32, v.roll_deg as f32]
+}
+
+/// A fitted pose as camera-from-object, metres.
+pub fn fit_pose(fit: &ShapeFit) -> glam::DAffine3 {
+    let [x, y, z, w] = fit.rotation.map(f64::from);
+    glam::DAffine3::from_rotation_translation(
+        glam::DQuat::from_xyzw(x, y, z, w).normalize(),
+        glam::DVec3::from_array(fit.translation_m.map(f64::from)),
+    )
+}
+
+/// The estimate of a region whose colours made none, from the shape alone.
+fn shape_only(fit: ShapeFit) -> PoseEstimate {
+    let [theta_deg, phi_deg, roll_deg] = fit_view(&fit);
+    PoseEstimate {
+        theta_deg,
+        phi_deg,
+        best_value: 0.0,
+        scale: f32::NAN,
+        best_view: 0,
+        roll_deg,
+        map_rival: f32::NAN,
+        shape: Outcome::Done(fit),
+    }
+}
+
 impl Stage for Pose {
     const ID: StageId = StageId::Pose;
+    const READS_FRAME: bool = true;
     type Input = Segmented;
     type Part = Outcome<PoseEstimate>;
     type Output = Posed;
@@ -167,6 +456,7 @@ impl Stage for Pose {
         &mut self,
         input: &Segmented,
         payload: &[u8],
+        frame: &[u8],
         out: &mut [u8],
     ) -> Result<Outcome<PoseEstimate>, Fault> {
         let Some(region) = RegionPayload::read(input, payload)? else {
@@ -183,14 +473,24 @@ impl Stage for Pose {
             width: roi.width,
             height: roi.height,
         };
-        let Some(e) = self.estimator.estimate(
+        let colour = self.estimator.estimate(
             &self.index,
             Some(region.mask),
             crop,
             self.scale,
             self.refinement,
-        ) else {
-            return Ok(Outcome::Nothing);
+        );
+        let shape = self.fit_shape(input, &region, frame, colour.as_ref());
+        let Some(e) = colour else {
+            return Ok(match shape {
+                // The shape alone: no pair of the object's colours in the
+                // region, so no response either.
+                Outcome::Done(fit) => {
+                    write_response(&vec![0.0; self.estimator.database().views().len()], out)?;
+                    Outcome::Done(shape_only(fit))
+                }
+                _ => Outcome::Nothing,
+            });
         };
         write_response(self.estimator.response(), out)?;
         let map_rival = self.estimator.map_rival(
@@ -200,7 +500,7 @@ impl Stage for Pose {
             &e,
             acch_confidence::DEFAULT_MIN_PHI_SEPARATION_DEG,
         );
-        Ok(Outcome::Done(PoseEstimate {
+        let mut estimate = PoseEstimate {
             theta_deg: e.theta_deg,
             phi_deg: e.phi_deg,
             best_value: e.best_value,
@@ -208,7 +508,19 @@ impl Stage for Pose {
             best_view: e.best_view as u32,
             roll_deg: e.roll_deg,
             map_rival,
-        }))
+            shape,
+        };
+        if let Outcome::Done(fit) = shape
+            && fit.anchored == 0
+        {
+            // The shape decides the view (trusted colours placed it
+            // themselves: the shape verified them).
+            let v = fit_view(&fit);
+            estimate.theta_deg = v[0];
+            estimate.phi_deg = v[1];
+            estimate.roll_deg = v[2];
+        }
+        Ok(Outcome::Done(estimate))
     }
 
     fn output(input: &Segmented, pose: Outcome<PoseEstimate>) -> Posed {

@@ -311,6 +311,7 @@ impl Stage for Recognition {
         &mut self,
         frame: &FrameHeader,
         rgb: &[u8],
+        _: &[u8],
         out: &mut [u8],
     ) -> Result<Outcome<Window>, Fault> {
         // Said for this frame only, whatever becomes of it.

@@ -372,9 +372,39 @@ impl Seeding {
                     relative_sigma: SCALE_DISTANCE_RELATIVE_SIGMA,
                 },
             },
-            confidence: (verdict.confidence as f64).clamp(0.0, 1.0),
+            // A verified estimate has no network's rating: the shape's
+            // rules accepted it.
+            confidence: if verdict.confidence.is_finite() {
+                (verdict.confidence as f64).clamp(0.0, 1.0)
+            } else {
+                1.0
+            },
             grid: self.grid,
         })
+    }
+
+    /// The seed of an accepted estimate: the pose the object's shape
+    /// fitted, with the fit's covariance, when the shape chose the view;
+    /// else (the colours placed the object, or there is no shape) the view
+    /// placed on the region's ray at its distance.
+    fn seed_of(
+        &self,
+        input: &Rated,
+        s: &SeedInput,
+    ) -> Result<acch_seeding::Seed, acch_seeding::SeedError> {
+        match input
+            .posed
+            .pose
+            .done()
+            .and_then(|p| p.shape.done())
+            .filter(|f| f.anchored == 0)
+        {
+            Some(fit) => Ok(acch_seeding::Seed {
+                camera_from_object: super::pose::fit_pose(&fit),
+                covariance: super::pose::fit_covariance_matrix(&fit),
+            }),
+            None => acch_seeding::seed(s, &self.covariance),
+        }
     }
 
     /// Fuses a seeded estimate (the filter runs only while the arm's pose
@@ -437,13 +467,19 @@ impl Stage for Seeding {
         0
     }
 
-    fn process(&mut self, input: &Rated, _: &[u8], _: &mut [u8]) -> Result<SeedingPart, Fault> {
+    fn process(
+        &mut self,
+        input: &Rated,
+        _: &[u8],
+        _: &[u8],
+        _: &mut [u8],
+    ) -> Result<SeedingPart, Fault> {
         self.predict(input);
         let sequence = input.envelope().frame.sequence;
         let (seed, fusion) = match self.seed_input(input) {
             None if input.posed.pose.done().is_some() => (Outcome::Nothing, Fusion::None),
             None => (Outcome::Skipped, Fusion::None),
-            Some(s) => match acch_seeding::seed(&s, &self.covariance) {
+            Some(s) => match self.seed_of(input, &s) {
                 Ok(seed) => {
                     let fusion = self.fuse(&s, sequence);
                     if matches!(fusion, Fusion::Started | Fusion::Fused | Fusion::Restarted) {

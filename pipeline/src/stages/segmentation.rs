@@ -189,6 +189,7 @@ impl Stage for Segmentation {
         &mut self,
         input: &Recognised,
         payload: &[u8],
+        _: &[u8],
         out: &mut [u8],
     ) -> Result<Outcome<PixelRect>, Fault> {
         let Outcome::Done(window) = input.detection else {

@@ -188,17 +188,7 @@ impl ViewPose {
     /// then turns right and down about forward:
     /// `right' = cos ρ right + sin ρ down`, `down' = -sin ρ right + cos ρ down`.
     pub fn world_from_camera_rotation(&self) -> DMat3 {
-        let (st, ct) = self.theta_deg.to_radians().sin_cos();
-        let (sp, cp) = self.phi_deg.to_radians().sin_cos();
-        let forward = -DVec3::new(ct * cp, ct * sp, st);
-        let up = DVec3::new(-st * cp, -st * sp, ct);
-        let down = -up;
-        let right = down.cross(forward);
-        if self.roll_deg == 0.0 {
-            return DMat3::from_cols(right, down, forward);
-        }
-        let (sr, cr) = self.roll_deg.to_radians().sin_cos();
-        DMat3::from_cols(cr * right + sr * down, cr * down - sr * right, forward)
+        world_from_camera_rotation(self.theta_deg, self.phi_deg, self.roll_deg)
     }
 
     /// The camera pose: maps points from the OpenCV camera frame (x right,
@@ -214,6 +204,25 @@ impl ViewPose {
         let r = self.world_from_camera_rotation().transpose();
         DAffine3::from_mat3_translation(r, -(r * self.camera_position()))
     }
+}
+
+/// The rotation of a camera at elevation `theta_deg` (any, negative below
+/// the horizontal) and azimuth `phi_deg` looking at the origin, rolled by
+/// `roll_deg` about its optical axis: columns right, down and forward in
+/// the world ([`ViewPose::world_from_camera_rotation`], whose elevation
+/// is limited to a camera above the table).
+pub fn world_from_camera_rotation(theta_deg: f64, phi_deg: f64, roll_deg: f64) -> DMat3 {
+    let (st, ct) = theta_deg.to_radians().sin_cos();
+    let (sp, cp) = phi_deg.to_radians().sin_cos();
+    let forward = -DVec3::new(ct * cp, ct * sp, st);
+    let up = DVec3::new(-st * cp, -st * sp, ct);
+    let down = -up;
+    let right = down.cross(forward);
+    if roll_deg == 0.0 {
+        return DMat3::from_cols(right, down, forward);
+    }
+    let (sr, cr) = roll_deg.to_radians().sin_cos();
+    DMat3::from_cols(cr * right + sr * down, cr * down - sr * right, forward)
 }
 
 #[cfg(test)]

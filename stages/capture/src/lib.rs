@@ -46,6 +46,7 @@ mod multi;
 mod noise;
 mod object;
 mod paint;
+mod posed;
 mod raster;
 mod render;
 mod texture;
@@ -54,7 +55,9 @@ mod views;
 
 pub use background::{Background, TextureSet};
 pub use calibration::{Calibration, Distortion, DistortionModel};
-pub use camera::{DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance};
+pub use camera::{
+    DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance, world_from_camera_rotation,
+};
 pub use effects::Effects;
 pub use error::CaptureError;
 pub use generated::{GENERATED_PREFIX, GENERATOR_REVISION, generated_seed, population};
@@ -62,7 +65,8 @@ pub use multi::{
     MAX_SCENE_OBJECTS, MULTI_DISTANCE, MultiRendered, MultiRenderer, MultiScene, MultiSceneError,
     ObjectTruth, SceneLight, view_from,
 };
-pub use object::{BUILTIN_OBJECTS, ModelInfo, Object, UpAxis};
+pub use object::{BUILTIN_OBJECTS, FileFrame, ModelInfo, Object, UpAxis};
+pub use posed::{PosedRender, render_posed};
 pub use render::{
     BBox, GroundTruth, MAX_EXPOSURE_SAMPLES, Rendered, Renderer, SceneConfig, exposure_samples,
     mask_bbox,

@@ -48,6 +48,44 @@ pub struct Object {
     table_z: f64,
     /// The real bounding radius, metres (one normalised unit).
     radius_m: f64,
+    /// Where the normalised frame sits in the mesh file's coordinates.
+    file_frame: FileFrame,
+}
+
+/// Where an object's normalised frame sits in the coordinates of the file
+/// it was loaded from (or the builder's, for a built-in object): a file
+/// point `p` is the object point `(up.rotation() * p - centre) / radius`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FileFrame {
+    /// The file's axis that became +z.
+    pub up: UpAxis,
+    /// The bounding-box centre, file units, after the up rotation.
+    pub centre: glam::DVec3,
+    /// The bounding radius, file units: one normalised unit.
+    pub radius: f64,
+}
+
+impl FileFrame {
+    /// The rigid camera-from-object transform in normalised units (object
+    /// bounding radii) of a camera that sees the file's model at
+    /// `camera_from_file` (file units, as BOP's `cam_R_m2c`, `cam_t_m2c`).
+    pub fn camera_from_object(&self, camera_from_file: &glam::DAffine3) -> glam::DAffine3 {
+        let r = camera_from_file.matrix3 * self.up.rotation().transpose();
+        glam::DAffine3::from_mat3_translation(
+            r,
+            (r * self.centre + camera_from_file.translation) / self.radius,
+        )
+    }
+
+    /// The inverse of [`FileFrame::camera_from_object`]: the camera's view
+    /// of the file's model, file units.
+    pub fn camera_from_file(&self, camera_from_object: &glam::DAffine3) -> glam::DAffine3 {
+        let r = camera_from_object.matrix3;
+        glam::DAffine3::from_mat3_translation(
+            r * self.up.rotation(),
+            camera_from_object.translation * self.radius - r * self.centre,
+        )
+    }
 }
 
 /// Which axis of a mesh file points up (becomes the world z axis).
@@ -165,7 +203,7 @@ impl Object {
     /// texture coordinates and a material with `map_Kd`; missing normals are
     /// computed (smoothed across edges sharper than 60 degrees only).
     pub fn load_obj_with_up(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
-        crate::mesh::obj::load(path.as_ref(), up)
+        Ok(crate::mesh::obj::load(path.as_ref(), up)?.with_file_up(up))
     }
 
     /// Loads a mesh file of any supported format, chosen by its extension
@@ -238,6 +276,17 @@ impl Object {
         check_size("the object radius", radius_m)?;
         self.radius_m = radius_m;
         Ok(self)
+    }
+
+    /// Where the normalised frame sits in the mesh file's coordinates.
+    pub fn file_frame(&self) -> &FileFrame {
+        &self.file_frame
+    }
+
+    /// The object with the up axis its file was loaded with recorded.
+    pub(crate) fn with_file_up(mut self, up: UpAxis) -> Object {
+        self.file_frame.up = up;
+        self
     }
 
     /// The lowest z of the object: the height of the table it stands on.
@@ -568,6 +617,11 @@ impl MeshBuilder {
             textures: self.textures,
             table_z,
             radius_m: 1.0,
+            file_frame: FileFrame {
+                up: UpAxis::PosZ,
+                centre: glam::DVec3::ZERO,
+                radius: 1.0,
+            },
         }
     }
 
@@ -597,6 +651,8 @@ impl MeshBuilder {
         } else {
             unit_m
         };
+        object.file_frame.centre = centre;
+        object.file_frame.radius = if radius > 0.0 { radius } else { 1.0 };
         object
     }
 }

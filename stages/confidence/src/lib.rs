@@ -76,6 +76,31 @@ pub const PHI_PLATEAU_LIMIT_DEG: f32 = 40.0;
 /// estimates of occluded objects reach it in about 1 % of frames.
 pub const MAX_MAP_RIVAL: f32 = 0.02;
 
+/// An estimate the object's shape verified is accepted only when this
+/// share of its fitted contour or more lies on the region's edge (the
+/// region inside the contour, not outside it): the silhouette and the
+/// region agree. On LM-O's real photographs, with the annotated mask,
+/// right estimates reach a median of 0.89-0.99 by it and wrong ones
+/// 0.51-0.87 (docs/accuracy.md, "Real photographs").
+pub const MIN_REGION_EDGE: f32 = 0.9;
+
+/// ...and, when the shape alone chose it (the colours did not anchor the
+/// view), only when its silhouette and the region cover each other by at
+/// least this intersection over union: a contour can follow the edge of
+/// part of a larger region. (Anchored estimates are exempt: there a
+/// region grown over part of the object is common, 0.62-0.68 on rendered
+/// frames of the fruitbox whose colours place the view right.) On LM-O's development objects, right accepted
+/// estimates reach 0.72 or more with the annotated mask; the one wrong
+/// estimate automatic segmentation accepted without it covered 0.54 of a
+/// region off the object (docs/real-photographs.md).
+pub const MIN_OVERLAP: f32 = 0.7;
+
+/// ...and only when its score (what it explains of the image) beats the
+/// best candidate that would be a failure if it were right, the object's
+/// symmetries allowed for, by this much: another pose that explains the
+/// image about as well makes it a guess.
+pub const MIN_SHAPE_MARGIN: f32 = 0.3;
+
 /// A detection under recognition's threshold (its margin below this) is
 /// found, and never accepted ([`rejected_as_faint`]): recognition finds a
 /// window from 0.7x of its threshold (`acch_recognition::MIN_FOUND_MARGIN`)

@@ -26,7 +26,7 @@ pub(crate) fn load(path: &Path, up: UpAxis) -> Result<Object, CaptureError> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
+    let object = match ext.as_deref() {
         Some("obj") => obj::load(path, up),
         Some("ply") => ply::load(path, up),
         Some("gltf" | "glb") => gltf::load(path, up),
@@ -34,7 +34,8 @@ pub(crate) fn load(path: &Path, up: UpAxis) -> Result<Object, CaptureError> {
             path: path.to_path_buf(),
             accepted: ACCEPTED.to_string(),
         }),
-    }
+    }?;
+    Ok(object.with_file_up(up))
 }
 
 /// The object name of a mesh file: its stem.

@@ -1,0 +1,386 @@
+//! The pose from the object's shape, verified against the image: the
+//! silhouette search proposes views and rolls for the region (and another
+//! estimate, the colour histograms', may add its own), each candidate is
+//! fitted to the image by colour along its contour, and the fitted poses
+//! are judged by how sharply the object's colours part from its
+//! surroundings along the contour and how well the silhouette covers the
+//! region. The best is the estimate; the best of those that would be a
+//! failure if it were right is its rival.
+
+use crate::edges::Edges;
+use crate::geometry::{View, view_of};
+use crate::lines::{Image, LineParams, LineScratch, fit_covariance, fit_lines};
+use crate::model::ShapeModel;
+use crate::search::{Region, place_view, search};
+use crate::symmetry::Symmetry;
+use crate::verify::{Evidence, evidence};
+use acch_capture::Intrinsics;
+use glam::DAffine3;
+
+/// How the shape estimate is made.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeSettings {
+    /// The silhouette search tries the roll every this many degrees...
+    pub roll_step_deg: f64,
+    /// ...within ± this many (180: any roll): how far the camera rolls
+    /// about its optical axis, plus what an object off the axis adds.
+    pub max_roll_deg: f64,
+    /// Candidates the silhouette search hands on.
+    pub candidates: usize,
+    /// The fit by colour.
+    pub lines: LineParams,
+    /// Two poses are different views when one would fail as an estimate
+    /// of the other: elevation beyond this, degrees...
+    pub distinct_theta_deg: f64,
+    /// ...or azimuth beyond this.
+    pub distinct_phi_deg: f64,
+    /// How far the best candidate's neighbours are tilted, degrees (0:
+    /// none tried).
+    pub polish_deg: f64,
+    /// The fit of a challenger: it starts at the best's own place.
+    pub challenger_lines: LineParams,
+}
+
+impl Default for ShapeSettings {
+    fn default() -> Self {
+        ShapeSettings {
+            roll_step_deg: 5.0,
+            max_roll_deg: 180.0,
+            candidates: 8,
+            lines: LineParams::default(),
+            distinct_theta_deg: 10.0,
+            distinct_phi_deg: 20.0,
+            polish_deg: 5.0,
+            challenger_lines: LineParams {
+                lengths_px: vec![8.0, 4.0],
+                ..LineParams::default()
+            },
+        }
+    }
+}
+
+/// One candidate, fitted and measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scored {
+    /// Camera from object, object radii, after the fit.
+    pub pose: DAffine3,
+    /// The model's view nearest it.
+    pub view: usize,
+    /// What it explains of the image.
+    pub evidence: Evidence,
+    /// What ranks it.
+    pub score: f32,
+}
+
+/// The shape's estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeEstimate {
+    /// Every candidate, best first.
+    pub scored: Vec<Scored>,
+    /// The best candidate that would fail as an estimate of the best (a
+    /// different view, symmetries allowed for), when there is one.
+    pub rival: Option<usize>,
+    /// The best is the anchored proposal ([`Proposal::anchored`]).
+    pub anchored: bool,
+    /// The best pose's covariance from its fit
+    /// ([`crate::lines::fit_covariance`]).
+    pub covariance: [[f64; 6]; 6],
+}
+
+impl ShapeEstimate {
+    /// The best candidate.
+    pub fn best(&self) -> &Scored {
+        &self.scored[0]
+    }
+
+    /// Its view.
+    pub fn view(&self) -> View {
+        view_of(&self.best().pose)
+    }
+
+    /// The rival's score; -inf when there is none.
+    pub fn rival_score(&self) -> f32 {
+        self.rival
+            .map_or(f32::NEG_INFINITY, |r| self.scored[r].score)
+    }
+}
+
+/// Turns of the best pose about the object's up axis tried as its
+/// challengers, degrees.
+const CHALLENGER_TURNS_DEG: [f64; 7] = [30.0, 60.0, 90.0, 180.0, 270.0, 300.0, 330.0];
+/// How far the best pose is tilted for its other challengers, degrees.
+const CHALLENGER_TILT_DEG: f64 = 20.0;
+
+/// The score that ranks candidates: the sum of every measure of what the
+/// pose explains, each a share or a correlation.
+pub fn rank_score(e: &Evidence) -> f32 {
+    e.separation
+        + e.overlap
+        + e.region_edge
+        + e.contour_edges
+        + e.inner_edges
+        + e.colour
+        + e.histograms
+}
+
+/// One frame's inputs to the fits.
+struct Frame<'a> {
+    image: &'a Image<'a>,
+    k: &'a Intrinsics,
+    region: &'a Region<'a>,
+    colour: Option<&'a dyn Fn(f64, f64) -> f32>,
+}
+
+/// The pose from an object's shape.
+#[derive(Clone, Debug)]
+pub struct ShapeEstimator {
+    model: ShapeModel,
+    symmetry: Symmetry,
+    settings: ShapeSettings,
+    edges: Edges,
+    lines: LineScratch,
+}
+
+impl ShapeEstimator {
+    /// An estimator of `model`, which looks the same by `symmetry`.
+    pub fn new(model: ShapeModel, symmetry: Symmetry, settings: ShapeSettings) -> Self {
+        ShapeEstimator {
+            model,
+            symmetry,
+            settings,
+            edges: Edges::default(),
+            lines: LineScratch::default(),
+        }
+    }
+
+    /// The model.
+    pub fn model(&self) -> &ShapeModel {
+        &self.model
+    }
+
+    /// The object's symmetry.
+    pub fn symmetry(&self) -> &Symmetry {
+        &self.symmetry
+    }
+
+    /// Whether `a` would fail as an estimate of `b` (or of any pose that
+    /// looks like it).
+    pub fn distinct(&self, a: &DAffine3, b: &DAffine3) -> bool {
+        let va = view_of(a);
+        self.symmetry.equivalents(&b.matrix3).all(|r| {
+            let vb = view_of(&DAffine3::from_mat3_translation(r, b.translation));
+            let dphi = (va.phi_deg - vb.phi_deg + 540.0).rem_euclid(360.0) - 180.0;
+            (va.theta_deg - vb.theta_deg).abs() > self.settings.distinct_theta_deg
+                || dphi.abs() > self.settings.distinct_phi_deg
+        })
+    }
+
+    /// `start` fitted and measured.
+    fn fitted(&mut self, start: &DAffine3, frame: &Frame) -> Scored {
+        self.fitted_by(start, frame, false)
+    }
+
+    /// `start` fitted (by the short schedule when `quick`: a challenger
+    /// starts at a whole pose, not a grid step away) and measured.
+    fn fitted_by(&mut self, start: &DAffine3, frame: &Frame, quick: bool) -> Scored {
+        let lines = if quick {
+            &self.settings.challenger_lines
+        } else {
+            &self.settings.lines
+        };
+        let f = fit_lines(
+            &self.model,
+            frame.image,
+            frame.k,
+            Some(frame.region),
+            start,
+            lines,
+            &mut self.lines,
+        );
+        let mut evidence = evidence(
+            &self.model,
+            f.view,
+            &f.pose,
+            f.separation,
+            frame.image,
+            &self.edges,
+            frame.k,
+            frame.region,
+        );
+        if let Some(colour) = frame.colour {
+            let v = view_of(&f.pose);
+            evidence.histograms = colour(v.theta_deg, v.phi_deg);
+        }
+        Scored {
+            pose: f.pose,
+            view: f.view,
+            score: rank_score(&evidence),
+            evidence,
+        }
+    }
+
+    /// The best of `start` and the poses tilted from it by
+    /// [`ShapeSettings::polish_deg`] about the camera's horizontal and
+    /// vertical axes, each fitted and measured.
+    fn polish(&mut self, start: &Scored, frame: &Frame) -> Scored {
+        let d = self.settings.polish_deg.to_radians();
+        let mut best = *start;
+        for (ax, ay) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+            let turn = glam::DMat3::from_rotation_x(ax * d) * glam::DMat3::from_rotation_y(ay * d);
+            let tilted =
+                DAffine3::from_mat3_translation(turn * start.pose.matrix3, start.pose.translation);
+            let s = self.fitted(&tilted, frame);
+            if s.score > best.score {
+                best = s;
+            }
+        }
+        best
+    }
+
+    /// The estimate for `region` of `image` seen by `k`, with what another
+    /// estimate proposes ([`Proposal`]); `None` when the region is too
+    /// small to place a silhouette.
+    pub fn estimate(
+        &mut self,
+        image: &Image,
+        k: &Intrinsics,
+        region: &Region,
+        proposal: &Proposal,
+    ) -> Option<ShapeEstimate> {
+        let anchor = if proposal.anchored {
+            proposal
+                .views
+                .first()
+                .and_then(|&[t, p, r]| place_view(&self.model, t, p, r, region))
+        } else {
+            None
+        };
+        let searched = if anchor.is_some() {
+            // The anchor is the estimate: the search only finds its rivals.
+            self.settings.candidates.div_ceil(3)
+        } else {
+            self.settings.candidates
+        };
+        let mut starts: Vec<DAffine3> = search(
+            &self.model,
+            region,
+            self.settings.roll_step_deg,
+            self.settings.max_roll_deg,
+            searched,
+        )
+        .into_iter()
+        .map(|c| c.pose)
+        .collect();
+        if anchor.is_none() {
+            starts.extend(
+                proposal
+                    .views
+                    .iter()
+                    .filter_map(|&[t, p, r]| place_view(&self.model, t, p, r, region)),
+            );
+        }
+        if starts.is_empty() && anchor.is_none() {
+            return None;
+        }
+        // The gradients about the region: the fits stay near it.
+        let margin = 32;
+        let h = region.height() as usize;
+        self.edges.compute_in(
+            image.rgb,
+            image.width,
+            image.height,
+            [
+                (region.x0 as usize).saturating_sub(margin),
+                (region.y0 as usize).saturating_sub(margin),
+                region.x0 as usize + region.width as usize + margin,
+                region.y0 as usize + h + margin,
+            ],
+        );
+        let frame = Frame {
+            image,
+            k,
+            region,
+            colour: proposal.colour,
+        };
+        let mut scored: Vec<Scored> = starts.iter().map(|s| self.fitted(s, &frame)).collect();
+        scored.sort_by(|a, b| b.score.total_cmp(&a.score));
+        match anchor {
+            Some(a) => {
+                // The anchor's family: it fitted, its neighbours, and the
+                // search's candidates that are the same view; the best of
+                // them is the estimate.
+                let fitted = self.fitted(&a, &frame);
+                let polished = self.polish(&fitted, &frame);
+                let family = scored
+                    .iter()
+                    .position(|c| !self.distinct(&c.pose, &a))
+                    .filter(|&i| scored[i].score > polished.score);
+                match family {
+                    Some(i) => {
+                        let c = scored.remove(i);
+                        scored.insert(0, c);
+                    }
+                    None => scored.insert(0, polished),
+                }
+            }
+            // The fit holds the tilt (the grid sets it): the best
+            // candidate's neighbours half a grid step away in tilt decide
+            // between steps.
+            None if self.settings.polish_deg > 0.0 => {
+                let polished = self.polish(&scored[0], &frame);
+                if polished.score > scored[0].score {
+                    scored[0] = polished;
+                }
+            }
+            None => {}
+        }
+        let best = scored[0].pose;
+        // Challengers: the best turned about the object's up axis and
+        // tilted; a pose that differs and explains the image about as
+        // well makes the best one a guess.
+        for turn in CHALLENGER_TURNS_DEG {
+            let r = best.matrix3 * glam::DMat3::from_rotation_z(turn.to_radians());
+            let start = DAffine3::from_mat3_translation(r, best.translation);
+            let s = self.fitted_by(&start, &frame, true);
+            scored.push(s);
+        }
+        for (ax, ay) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+            let d = CHALLENGER_TILT_DEG.to_radians();
+            let turn = glam::DMat3::from_rotation_x(ax * d) * glam::DMat3::from_rotation_y(ay * d);
+            let start = DAffine3::from_mat3_translation(turn * best.matrix3, best.translation);
+            let s = self.fitted_by(&start, &frame, true);
+            scored.push(s);
+        }
+        scored[1..].sort_by(|a, b| b.score.total_cmp(&a.score));
+        let rival = (1..scored.len()).find(|&i| self.distinct(&scored[i].pose, &best));
+        let covariance = fit_covariance(
+            &self.model,
+            image,
+            k,
+            Some(region),
+            &best,
+            &self.settings.lines,
+            &mut self.lines,
+        );
+        Some(ShapeEstimate {
+            scored,
+            rival,
+            anchored: anchor.is_some(),
+            covariance,
+        })
+    }
+}
+
+/// What another estimate (the colour histograms') tells the shape.
+#[derive(Clone, Copy, Default)]
+pub struct Proposal<'a> {
+    /// Views it proposes, θ, φ and roll in degrees, best first.
+    pub views: &'a [[f64; 3]],
+    /// The first view is the estimate (colours that match the database
+    /// well place a textured object better than its outline): the shape
+    /// fits it in 6-DOF and judges it against its own candidates.
+    pub anchored: bool,
+    /// How well the object's colours match each view, `colour(θ, φ)` in
+    /// [0, 1]: what tells apart views whose outlines are alike.
+    pub colour: Option<&'a dyn Fn(f64, f64) -> f32>,
+}

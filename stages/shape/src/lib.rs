@@ -1,0 +1,32 @@
+//! The object's shape beside its colours.
+//!
+//! On real photographs a mesh's colours rarely match the camera's, but its
+//! outline does: this crate holds each view's silhouette and contour
+//! ([`ShapeModel`], trained from the mesh by the renderer), finds the views
+//! and rolls whose silhouette matches a segmented region ([`search`]),
+//! fits a candidate's contour to the image's edges in 6-DOF ([`refine`]),
+//! and says how much of the contour the fitted pose explains ([`explain`]).
+
+#![warn(missing_docs)]
+
+pub mod db;
+pub mod edges;
+pub mod estimate;
+pub mod fit;
+pub mod geometry;
+pub mod lines;
+pub mod model;
+pub mod search;
+pub mod symmetry;
+pub mod verify;
+
+pub use db::{SHAPE_SECTION, SYMMETRY_SECTION, StoredShapeError, default_grid, store, stored};
+pub use edges::Edges;
+pub use estimate::{Proposal, Scored, ShapeEstimate, ShapeEstimator, ShapeSettings, rank_score};
+pub use fit::{Fit, FitParams, explain, refine};
+pub use geometry::{View, pose_of, rotation_angle_deg, towards, view_of};
+pub use lines::{Image, LineFit, LineParams, LineScratch, fit_lines, judge_lines};
+pub use model::{ColourPoint, ContourPoint, ShapeModel, ShapeModelError, ShapeView};
+pub use search::{Candidate, Region, overlap_at, place_view, roll_matrix, search};
+pub use symmetry::{Symmetry, SymmetryError};
+pub use verify::{Evidence, evidence};
