@@ -31,6 +31,12 @@ from mcap.reader import make_reader
 from mcap.records import DataEnd, Footer, Message
 from mcap.stream_reader import StreamReader
 
+
+def check(ok, what):
+    """An assert that python -O keeps: fails the check, saying what."""
+    if not ok:
+        sys.exit(f"check failed: {what}")
+
 # descriptor.proto FieldDescriptorProto.Type -> wire type
 WIRE = {1: 1, 2: 5, 3: 0, 4: 0, 5: 0, 6: 1, 7: 5, 8: 0, 9: 2, 11: 2, 12: 2,
         13: 0, 14: 0, 15: 5, 16: 1, 17: 0, 18: 0}
@@ -99,7 +105,7 @@ def descriptors(fds):
             message(f"{prefix}{name}.", v)
 
     for n, _, file in fields(fds):
-        assert n == 1
+        check(n == 1, 'n == 1')
         f = list(fields(file))
         package = next((v.decode() for k, _, v in f if k == 2), "")
         for k, _, v in f:
@@ -136,7 +142,7 @@ def decode(messages, enums, name, buf):
         elif ftype == 11:
             v = decode(messages, enums, tname, value)
         elif ftype == 14:
-            assert tname in enums, tname
+            check(tname in enums, tname)
             v = value
         elif ftype == 8:
             v = bool(value)
@@ -270,10 +276,10 @@ def main(path, layout=None):
             s = summary.schemas[ch.schema_id]
             schemas[ch.topic] = [s.name, s.encoding, ch.message_encoding]
             if s.encoding == "protobuf":
-                assert ch.message_encoding == "protobuf", ch
-                assert len(s.data) > 0, s.name
+                check(ch.message_encoding == "protobuf", ch)
+                check(len(s.data) > 0, s.name)
                 pools[s.id] = descriptors(s.data)
-                assert s.name in pools[s.id][0], f"{s.name} not in its own descriptors"
+                check(s.name in pools[s.id][0], f"{s.name} not in its own descriptors")
             elif s.encoding == "jsonschema":
                 json_schemas[ch.topic] = json.loads(s.data)
         for schema, channel, message in reader.iter_messages():

@@ -75,7 +75,6 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
         summary["frame_reads"], summary["frame_reads_in_place"],
         "{summary}"
     );
-    assert!(summary["end_to_end"]["p99_ms"].as_f64().unwrap() > 0.0);
     // stage_cpus = "auto": on two or more CPUs the five stages and
     // capture's publishing thread share the last one, read back from
     // /proc/PID/status of every process.
