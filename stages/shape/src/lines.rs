@@ -263,35 +263,9 @@ pub fn fit_lines(
             break;
         }
         let len = length.round().max(2.0) as usize;
-        scratch.sample(image, len);
-        let totals = scratch.count(len);
-        scratch.posteriors(totals, region.map(|r| (r, params.region_weight)), len);
-        let mut jtj = [[0.0f64; 6]; 6];
-        let mut jtr = [0.0f64; 6];
-        let mut used = 0;
-        let LineScratch {
-            points,
-            post,
-            energies,
-            ..
-        } = scratch;
-        for (p, line) in points.iter().zip(post.chunks(2 * len + 1)) {
-            let (delta, var) = edge_on_line(line, energies);
-            // A line whose edge is anywhere says nothing.
-            if var > (len as f64 * len as f64) / 6.0 {
-                continue;
-            }
-            accumulate(
-                p,
-                pose.translation,
-                k,
-                delta,
-                1.0 / (var + 1.0),
-                &mut jtj,
-                &mut jtr,
-            );
-            used += 1;
-        }
+        let LineSystem {
+            mut jtj, jtr, used, ..
+        } = line_system(image, k, region, &pose, len, params, scratch);
         if used < 6 {
             break;
         }
@@ -332,28 +306,9 @@ pub fn fit_covariance(
     let view = model.nearest_view(&view_of(pose));
     project_contour_every(model, view, params.stride, pose, k, &mut scratch.points);
     let len = length.round().max(2.0) as usize;
-    scratch.sample(image, len);
-    let totals = scratch.count(len);
-    scratch.posteriors(totals, region.map(|r| (r, params.region_weight)), len);
-    let mut jtj = [[0.0f64; 6]; 6];
-    let mut jtr = [0.0f64; 6];
-    let (mut sum_w, mut sum_r2) = (0.0f64, 0.0f64);
-    let LineScratch {
-        points,
-        post,
-        energies,
-        ..
-    } = scratch;
-    for (p, line) in points.iter().zip(post.chunks(2 * len + 1)) {
-        let (delta, var) = edge_on_line(line, energies);
-        if var > (len as f64 * len as f64) / 6.0 {
-            continue;
-        }
-        let w = 1.0 / (var + 1.0);
-        accumulate(p, pose.translation, k, delta, w, &mut jtj, &mut jtr);
-        sum_w += w;
-        sum_r2 += w * delta * delta;
-    }
+    let LineSystem {
+        jtj, sum_w, sum_r2, ..
+    } = line_system(image, k, region, pose, len, params, scratch);
     if sum_w <= 6.0 {
         return cov;
     }
@@ -366,6 +321,60 @@ pub fn fit_covariance(
         }
     }
     cov
+}
+
+/// The normal equations of the projected contour's lines of half length
+/// `len` at `pose`: each line's edge, where the colours part, weighted by
+/// how sharply it is placed (a line whose edge may be anywhere is left out).
+struct LineSystem {
+    jtj: [[f64; 6]; 6],
+    jtr: [f64; 6],
+    /// Lines that placed an edge.
+    used: usize,
+    /// Their weights' sum, and the weighted squared residuals'.
+    sum_w: f64,
+    sum_r2: f64,
+}
+
+/// [`LineSystem`] of the points in `scratch` (projected at `pose`).
+fn line_system(
+    image: &Image,
+    k: &Intrinsics,
+    region: Option<&Region>,
+    pose: &DAffine3,
+    len: usize,
+    params: &LineParams,
+    scratch: &mut LineScratch,
+) -> LineSystem {
+    scratch.sample(image, len);
+    let totals = scratch.count(len);
+    scratch.posteriors(totals, region.map(|r| (r, params.region_weight)), len);
+    let mut sys = LineSystem {
+        jtj: [[0.0; 6]; 6],
+        jtr: [0.0; 6],
+        used: 0,
+        sum_w: 0.0,
+        sum_r2: 0.0,
+    };
+    let LineScratch {
+        points,
+        post,
+        energies,
+        ..
+    } = scratch;
+    for (p, line) in points.iter().zip(post.chunks(2 * len + 1)) {
+        let (delta, var) = edge_on_line(line, energies);
+        // A line whose edge is anywhere says nothing.
+        if var > (len as f64 * len as f64) / 6.0 {
+            continue;
+        }
+        let w = 1.0 / (var + 1.0);
+        accumulate(p, pose.translation, k, delta, w, &mut sys.jtj, &mut sys.jtr);
+        sys.used += 1;
+        sys.sum_w += w;
+        sys.sum_r2 += w * delta * delta;
+    }
+    sys
 }
 
 /// Adds one point's row (the normal's row of the projection's Jacobian
@@ -448,7 +457,7 @@ pub fn judge_lines(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{View, pose_of, rotation_angle_deg};
+    use crate::geometry::{View, pose_of};
     use acch_capture::{Object, render_posed};
 
     #[test]
@@ -558,6 +567,5 @@ mod tests {
             "{before:?} {fit:?}"
         );
         assert!(err(&fit.pose).0 <= err(&start).0, "{fit:?}");
-        let _ = rotation_angle_deg;
     }
 }
