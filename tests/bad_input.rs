@@ -523,3 +523,53 @@ fn frames_of_another_size_mid_stream_are_skipped_and_the_rest_estimated() {
     assert_eq!(capture["skipped_size"], expect_skipped, "{capture}");
     assert_eq!(capture["sent"], n, "{capture}");
 }
+
+/// Every command prints each cause of an error once: a library error whose
+/// message holds its source was printed again as the next cause ("No such
+/// file or directory (os error 2): No such file or directory (os error 2)").
+#[test]
+fn each_command_says_each_cause_of_an_error_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let missing = d.join("missing.acchdb");
+    let missing = missing.to_str().unwrap();
+    let image = d.join("missing.png");
+    let image = image.to_str().unwrap();
+    let config = d.join("missing.toml");
+    let config = config.to_str().unwrap();
+    let mesh = d.join("missing.obj");
+    let mesh = mesh.to_str().unwrap();
+    let out_db = d.join("out.acchdb");
+    let out_db = out_db.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (&["estimate", "--db", missing, image], "No such file"),
+        (
+            &["run", "--objects", "nosuchobject", "--frames", "1"],
+            "nosuchobject",
+        ),
+        (
+            &["run", "--config", config, "--frames", "1"],
+            "No such file",
+        ),
+        (&["train", "--mesh", mesh, "--out", out_db], "No such file"),
+        (
+            &["render", "--mesh", mesh, "--out", d.to_str().unwrap()],
+            "No such file",
+        ),
+        (&["eval", "--bop", image, "--object", "1"], "missing.png"),
+    ];
+    for (args, cause) in cases {
+        let out = acch(d, args);
+        assert!(!out.status.success(), "acch {args:?} succeeded");
+        let err = String::from_utf8_lossy(&out.stderr);
+        let line = err
+            .lines()
+            .find(|l| l.starts_with("error:"))
+            .unwrap_or_else(|| panic!("acch {args:?}: no error line in {err}"));
+        assert_eq!(
+            line.matches(cause).count(),
+            1,
+            "acch {args:?} should say '{cause}' once: {line}"
+        );
+    }
+}

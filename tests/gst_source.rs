@@ -154,24 +154,24 @@ fn a_live_camera_is_paced_by_its_clock_with_its_buffers_time_stamps_and_drops_co
         Some(missing),
         "the drops counted are not the gaps in the time stamps"
     );
-    // Paced by the camera: 60 frames and the drops took their time.
-    let span_s = (stamps[59] - stamps[0]) as f64 / 1e9;
+    // Paced by the camera: 60 frames and the drops took their time (the
+    // time stamps' span is (59 + missing) frames by the gaps above).
     let expected = (59 + missing) as f64 / 30.0;
-    assert!(
-        (span_s - expected).abs() < 0.01,
-        "{span_s} s vs {expected} s"
-    );
     assert!(
         took > expected,
         "the run took {took} s, less than its frames"
     );
-    // On CLOCK_MONOTONIC: captured before published, and not long before.
+    // On CLOCK_MONOTONIC, the publisher's clock: captured before published
+    // and within 10 s, where another clock's stamps would be off by the
+    // machine's uptime. Not a latency bound (the benchmark measures that):
+    // the first frame waits for the stages to connect, 0.58 s at worst on
+    // a loaded machine, a seventeenth of the bound.
     for r in &results {
         let (c, p) = (
             r["stamp"]["captured_ns"].as_u64().unwrap(),
             r["stamp"]["published_ns"].as_u64().unwrap(),
         );
-        assert!(c < p && p - c < 500_000_000, "{r}");
+        assert!(c < p && p - c < 10_000_000_000, "{r}");
     }
 }
 
@@ -208,11 +208,17 @@ fn a_pipeline_that_fails_mid_stream_is_reopened_and_the_loss_reported() {
     );
     let camera = &capture_counters(&summary)["camera"];
     let failures = camera["failures"].as_u64().unwrap();
-    // 60 frames from pipelines of 25 buffers: two failures, one more for
-    // every 25 buffers a slow machine's appsink drops.
+    // 60 frames from pipelines of 25 buffers: two failures; the third
+    // pipeline gives the last 10 frames, and up to 15 more its two
+    // predecessors' appsink dropped. A slow machine drops a few; more than
+    // 10 of 60 is a source that cannot keep up.
     let dropped = camera["dropped"].as_u64().unwrap();
     assert!(
-        (2..=2 + dropped.div_ceil(25) + 1).contains(&failures),
+        dropped <= 10,
+        "the appsink dropped {dropped} of 60: {camera}"
+    );
+    assert_eq!(
+        failures, 2,
         "60 frames in pipelines of 25 fail twice (dropped {dropped}): {camera}"
     );
     // Reopening takes at least the first backoff (100 ms, 3 frames).

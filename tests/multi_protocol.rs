@@ -97,15 +97,6 @@ fn two_known_objects_are_found_and_told_apart() {
             "{name}: {right} of {detections} right"
         );
         for r in &mine {
-            for k in [
-                "recall",
-                "precision",
-                "failure_rate",
-                "acc_failure_rate",
-                "iou",
-            ] {
-                assert!((0.0..=1.0).contains(&f(r, k)), "{k}: {r}");
-            }
             // Both known against alone, on the same scenes.
             let single = &r["single"];
             assert!(f(r, "recall") >= f(single, "recall") - 0.25, "{r}");

@@ -2,7 +2,8 @@
 //! BOP format, fetched by scripts/lmo into a cache outside the clone; its
 //! path in ACCH_LMO) through `acch eval --bop`, the database trained by acch
 //! from the object's PLY with the dataset's recipe. Only development
-//! objects are used here (1, ape; 11, glue); 8, 9 and 12 are held out.
+//! objects are used here (1, ape; 5, can; 11, glue); 8, 9 and 12 are held
+//! out.
 //!
 //! What is checked, each against a bound the product meets today with a
 //! margin (docs/accuracy.md, "Real photographs"):
@@ -15,7 +16,9 @@
 //!   own scene_gt.json), which must count the same accepted rows and find
 //!   the same seed errors as acch's report;
 //! - a symmetric object (glue, a half turn about z) is scored up to its
-//!   declared symmetry.
+//!   declared symmetry;
+//! - where the colours match the database strongly but wrongly (the can),
+//!   the shape's better view overrules them.
 
 mod common;
 
@@ -92,17 +95,18 @@ fn ape_with_the_annotated_mask_accepts_few_wrong_and_writes_bop_results() {
     );
     // LM-O shows the ape in 187 images.
     assert_eq!(n, 187.0);
-    // Measured 4.4 % (2 of 45); the old colour-only pipeline: 79-100 %.
+    // Measured 2.9 % (2 of 68); the old colour-only pipeline: 79-100 %.
     assert!(wrong <= 0.05, "wrong among accepted {wrong}");
-    // Measured 23 %; the colour-only pipeline: 0-6 %.
+    // Measured 35.3 % (the first round of the shape: 23 %); the
+    // colour-only pipeline: 0-6 %.
     assert!(
-        f(&r, "accepted_right_rate") >= 0.2,
+        f(&r, "accepted_right_rate") >= 0.3,
         "accepted and right {}",
         f(&r, "accepted_right_rate")
     );
-    // Before acceptance: measured 35 % failures (the colour-only
+    // Before acceptance: measured 31.6 % failures (the colour-only
     // pipeline: 89-100 %).
-    assert!(f(&r, "failure_rate") <= 0.45);
+    assert!(f(&r, "failure_rate") <= 0.4);
     // The visible-share bands sum to every instance.
     let bands = r["bands"].as_array().unwrap();
     assert_eq!(bands.len(), 3);
@@ -111,8 +115,8 @@ fn ape_with_the_annotated_mask_accepts_few_wrong_and_writes_bop_results() {
         n
     );
 
-    // The seeds of accepted estimates: measured median 5.2° and 1.2 % of
-    // the distance, 93 % within 15° and 10 %.
+    // The seeds of accepted estimates: measured median 4.4° and 1.2 % of
+    // the distance, 96 % within 15° and 10 %.
     let seeds = &r["seeds"];
     assert!(f(seeds, "median_rotation_err_deg") <= 10.0, "{seeds}");
     assert!(f(seeds, "median_translation_err_rel") <= 0.05, "{seeds}");
@@ -155,6 +159,35 @@ fn ape_with_automatic_segmentation_rejects_rather_than_accepts_wrong() {
 }
 
 #[test]
+fn the_cans_shape_overrules_its_strong_but_wrong_colours() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = eval(dir.path(), "5", "mask", &[]);
+    let anchored_wrong = r["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|i| i["match_value"].as_f64().is_some_and(|m| m >= 0.65))
+        .filter(|i| i["failure"] == true)
+        .count();
+    eprintln!(
+        "can, mask: failures {:.3}, accepted and right {:.3}, {anchored_wrong} wrong among those whose colours matched at 0.65 or more",
+        f(&r, "failure_rate"),
+        f(&r, "accepted_right_rate")
+    );
+    // The can's colours match its mesh's at up to 0.96 in views half a
+    // turn away. Anchored by them, 44 instances failed, all of those
+    // matched at 0.65 or more, and 39.2 % of all; with the shape
+    // overruling them by the acceptance margin, measured 24.1 % failures
+    // and 14 of the 44 still wrong.
+    assert!(f(&r, "failure_rate") <= 0.3, "{}", f(&r, "failure_rate"));
+    assert!(
+        anchored_wrong <= 25,
+        "{anchored_wrong} strongly matched and wrong"
+    );
+    assert!(f(&r, "acc_failure_rate") <= 0.05);
+}
+
+#[test]
 fn glue_is_scored_up_to_its_declared_half_turn() {
     let dir = tempfile::tempdir().unwrap();
     let (plain, turned) = (dir.path().join("plain"), dir.path().join("turned"));
@@ -172,9 +205,9 @@ fn glue_is_scored_up_to_its_declared_half_turn() {
     eprintln!("glue, mask: failures {a:.3} without the symmetry, {b:.3} with it");
     // A glue tube turned half about its axis looks the same: scored
     // without the symmetry, right estimates count as failures (measured
-    // 49.4 % against 43.5 %), and the shape's margin counts the turned
-    // pose as a rival, so fewer are accepted (19.5 % accepted and right
-    // against 22.1 %).
+    // 44.2 % against 39.6 %), and the shape's margin counts the turned
+    // pose as a rival, so fewer are accepted (26.6 % accepted and right
+    // against 32.5 %).
     assert!(b + 0.04 <= a, "failures {b} with the symmetry, {a} without");
     let (right_without, right_with) = (
         f(&without, "accepted_right_rate"),
@@ -184,7 +217,7 @@ fn glue_is_scored_up_to_its_declared_half_turn() {
         right_without < right_with,
         "accepted and right {right_with} with the symmetry, {right_without} without"
     );
-    // Measured 2.9 % (1 of 35) wrong among accepted with it.
+    // Measured 2.0 % (1 of 51) wrong among accepted with it.
     assert!(f(&with, "acc_failure_rate") <= 0.05);
     // The independent reader, allowing the half turn, finds the seeds'
     // errors acch reports.

@@ -258,6 +258,12 @@ fn seeds_camera_info_and_tf_reach_rmw_zenoh_readers_and_the_bag_holds_the_same()
     let summary = record_summary(&run);
     let missed = |what: &str| summary[what].as_u64().unwrap() as usize;
     let (frames_missed, results_missed) = (missed("frames_missed"), missed("results_missed"));
+    // What the recorder counts as missed is forgiven, up to a tenth of the
+    // run's 120 frames: more is a recorder that cannot keep up, not load.
+    assert!(
+        frames_missed <= 12 && results_missed <= 12,
+        "the recorder missed {frames_missed} frames and {results_missed} results of 120"
+    );
     let bag_topics = &report["bag"]["topics"];
     let bag_count = |topic: &str| bag_topics[topic]["count"].as_u64().unwrap() as usize;
     for (topic, _) in topics {
@@ -291,8 +297,8 @@ fn seeds_camera_info_and_tf_reach_rmw_zenoh_readers_and_the_bag_holds_the_same()
     ] {
         let n = bag_count(topic);
         assert!(
-            n <= 120 && n + missed >= 120,
-            "{topic}: one per frame: {n} of 120 in the bag, {missed} missed"
+            n <= 120 && n + missed >= 120 && n >= 60,
+            "{topic}: one per frame: {n} of 120 in the bag (at least half wanted), {missed} missed"
         );
     }
     assert_eq!(bag_topics["/acch/image"]["type"], "sensor_msgs/msg/Image");

@@ -333,18 +333,6 @@ fn the_table2_protocol_writes_its_report() {
     assert_eq!(names, ["A", "B", "C", "clutter"]);
     for r in rows {
         assert_eq!(r["n"], 3);
-        for key in [
-            "iou",
-            "mean_phi_err_deg",
-            "mean_theta_err_deg",
-            "failure_rate",
-            "accepted_rate",
-            "acc_mean_phi_err_deg",
-            "acc_mean_theta_err_deg",
-            "acc_failure_rate",
-        ] {
-            assert!(r[key].as_f64().unwrap() >= 0.0, "{key} in {r}");
-        }
         assert!(r["iou"].as_f64().unwrap() > 0.8, "{r}");
         assert_eq!(r["not_found"], 0, "{r}");
     }

@@ -61,17 +61,14 @@ fn sequence_protocol_reports_single_vs_fused_and_review() {
             "single_failure_rate",
             "single_no_answer_rate",
             "single_wrong_rate",
-            "single_answer_failure_rate",
             "raw_failure_rate",
             "fused_failure_rate",
             "fused_no_answer_rate",
             "fused_wrong_rate",
-            "fused_answer_failure_rate",
-            "single_failure_rate_started",
-            "fused_failure_rate_started",
         ] {
-            let x = r[key].as_f64().unwrap_or(f64::NAN);
-            assert!((0.0..=1.0).contains(&x), "{key} = {x} in {r}");
+            // A share of the episode's 24 frames: a whole number of them.
+            let x = r[key].as_f64().unwrap_or(f64::NAN) * 24.0;
+            assert!((x - x.round()).abs() < 1e-6, "{key} = {x}/24 in {r}");
         }
         for key in ["single_mean_phi_err_deg", "fused_mean_phi_err_deg"] {
             let x = r[key].as_f64().unwrap_or(f64::NAN);
@@ -125,8 +122,6 @@ fn sequence_protocol_reports_single_vs_fused_and_review() {
             + r["initially_wrong"].as_u64().unwrap();
         assert_eq!(parts, n, "{r}");
         assert!(r["max_moves"].as_u64().unwrap() <= 3, "{r}");
-        let s = r["success_rate"].as_f64().unwrap();
-        assert!((0.0..=1.0).contains(&s), "{r}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

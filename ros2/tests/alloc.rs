@@ -83,4 +83,15 @@ fn encoding_into_warm_buffers_does_not_allocate() {
         }
     });
     assert_eq!(n, 0, "encoding allocated {n} times");
+    // The counter counts: encoding into a fresh buffer allocates (else the
+    // zero above would hold for a counter that never moves).
+    let fresh = allocations_during(|| {
+        let mut cold = Vec::new();
+        encode(&pose, &mut cold).unwrap();
+        std::hint::black_box(&cold);
+    });
+    assert!(
+        fresh >= 1,
+        "a fresh buffer's encoding counted {fresh} allocations"
+    );
 }

@@ -193,6 +193,7 @@ impl Pose {
                 symmetry,
                 ShapeSettings {
                     max_roll_deg: (settings.roll_search_deg as f64 + OFF_AXIS_ROLL_DEG).min(180.0),
+                    overrule_margin: acch_confidence::MIN_SHAPE_MARGIN,
                     ..ShapeSettings::default()
                 },
             )),
@@ -307,6 +308,10 @@ impl Pose {
             views: &proposed,
             // Trusted colours place the object: the shape verifies them.
             anchored: colour.is_some_and(|e| e.best_value >= COLOUR_ANCHORED_FROM),
+            // Below full trust the shape may overrule them: LM-O's can
+            // matched its mesh's colours at 0.65-0.8 in views half a turn
+            // away; rendered printed packaging, at 0.84-0.96, keeps them.
+            overrulable: colour.is_some_and(|e| e.best_value < COLOUR_TRUSTED_AT),
             colour: colour_fn,
         };
         let Some(s) = shape.estimate(&image, &k, &region, &proposal) else {
