@@ -11,6 +11,10 @@ mod common;
 use common::{acch, free_ports, ok, zenoh_subscriber};
 use serde_json::Value;
 
+/// The two tests' pipelines one at a time: two pipelines on 2 cores stall
+/// each other, and the first counts its drops (it asserts none).
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn rows(path: &std::path::Path) -> Vec<Value> {
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -21,6 +25,7 @@ fn rows(path: &std::path::Path) -> Vec<Value> {
 
 #[test]
 fn each_object_is_published_on_its_own_key_with_its_own_results() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let frames = 40u64;
     let dir = tempfile::tempdir().unwrap();
     let [p_fruitbox, p_can, p_run] = free_ports();
@@ -112,6 +117,7 @@ fn each_object_is_published_on_its_own_key_with_its_own_results() {
 
 #[test]
 fn several_objects_run_in_one_process_without_being_asked_and_say_so() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let dir = tempfile::tempdir().unwrap();
     let config = common::loopback_config(dir.path());
     let json = dir.path().join("s.json");
