@@ -18,7 +18,11 @@
 //! - a symmetric object (glue, a half turn about z) is scored up to its
 //!   declared symmetry;
 //! - where the colours match the database strongly but wrongly (the can),
-//!   the shape's better view overrules them.
+//!   the shape's better view overrules them;
+//! - a database trained from the dataset's own photographs (`--train-on
+//!   even`) is judged only on the others, estimates the can about as well
+//!   as its mesh's, and its recognition finds the ape where the mesh's
+//!   colours find the table.
 
 mod common;
 
@@ -149,13 +153,71 @@ fn ape_with_automatic_segmentation_rejects_rather_than_accepts_wrong() {
         "ape, auto: failures {:.3}, accepted {accepted:.3}, wrong among accepted {wrong:.3}",
         f(&r, "failure_rate")
     );
-    // The grown colour region mostly misses the ape in this clutter, so
-    // few estimates are right; what is accepted must still be right.
+    // The grown colour region mostly misses the ape in this clutter
+    // (measured: median share of the region on the ape 0), so few
+    // estimates are right; what is accepted must still be right.
+    assert!(
+        median_region_on_object(&r) < 0.2,
+        "{}",
+        median_region_on_object(&r)
+    );
     let wrongly_accepted = (wrong * accepted * f(&r, "n")).round();
     assert!(
         wrongly_accepted <= 1.0,
         "{wrongly_accepted} wrong estimates accepted"
     );
+}
+
+/// The median share of the segmented region that lies on the object.
+fn median_region_on_object(r: &Value) -> f64 {
+    let mut shares: Vec<f64> = r["images"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["region_on_object"].as_f64().unwrap_or(0.0))
+        .collect();
+    shares.sort_by(f64::total_cmp);
+    shares[shares.len() / 2]
+}
+
+#[test]
+fn the_apes_own_photographs_find_it_where_its_mesh_colours_do_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = eval(dir.path(), "1", "auto", &["--train-on", "even"]);
+    let on_object = median_region_on_object(&r);
+    eprintln!(
+        "ape, auto, trained on the even images: failures {:.3}, accepted and right {:.3}, median region on the ape {on_object:.2}",
+        f(&r, "failure_rate"),
+        f(&r, "accepted_right_rate")
+    );
+    // Judged only on the 103 instances in odd images, none it trained on.
+    assert_eq!(f(&r, "n"), 103.0);
+    // Recognition trained on real photographs finds the ape (measured:
+    // median 0.64 of the region on it; from the mesh's colours, 0): the
+    // gap is photometric.
+    assert!(on_object >= 0.4, "{on_object}");
+    // Measured 71.8 % failures (from the mesh: 95.7 %).
+    assert!(f(&r, "failure_rate") <= 0.85);
+    let wrongly_accepted = (f(&r, "acc_failure_rate") * f(&r, "accepted_rate") * 103.0).round();
+    assert!(wrongly_accepted <= 1.0, "{wrongly_accepted}");
+}
+
+#[test]
+fn the_can_from_its_own_photographs_is_estimated_as_well_as_from_its_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = eval(dir.path(), "5", "mask", &["--train-on", "even"]);
+    eprintln!(
+        "can, mask, trained on the even images: failures {:.3}, accepted and right {:.3}, wrong among accepted {:.3}",
+        f(&r, "failure_rate"),
+        f(&r, "accepted_right_rate"),
+        f(&r, "acc_failure_rate")
+    );
+    assert_eq!(f(&r, "n"), 107.0);
+    // Measured 18.7 % failures, 34.6 % accepted and right, none wrong
+    // (from the mesh, on the same odd images: 24.3 %, 35.5 %, none).
+    assert!(f(&r, "failure_rate") <= 0.3);
+    assert!(f(&r, "accepted_right_rate") >= 0.25);
+    assert!(f(&r, "acc_failure_rate") <= 0.05);
 }
 
 #[test]

@@ -484,6 +484,63 @@ pub fn from_bop(
     Ok((images, read.derived))
 }
 
+/// Which of a BOP dataset's images a database is trained from
+/// (`acch eval --bop --train-on`): the evaluation runs on the others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageParity {
+    /// Images with an even id.
+    Even,
+    /// Images with an odd id.
+    Odd,
+}
+
+impl ImageParity {
+    /// Whether `image` is one of these (an image without BOP ids is not).
+    pub fn holds(self, image: &LabelledImage) -> bool {
+        image
+            .bop_ids
+            .is_some_and(|(_, im_id, _)| (im_id % 2 == 0) == (self == ImageParity::Even))
+    }
+}
+
+/// A database trained from `images` themselves (photographs: the
+/// histograms and recognition from their annotated masks and views) with
+/// the shape of `object`, which looks the same by `symmetry`.
+pub fn train_on_images(
+    images: &[LabelledImage],
+    object: &acch_capture::Object,
+    symmetry: &acch_shape::Symmetry,
+    config: &acch_pose::train::TrainConfig,
+) -> Result<ViewDatabase, EvalError> {
+    let bar = progress(images.len() as u64, "loading");
+    let mut loaded = Vec::with_capacity(images.len());
+    for img in images {
+        let rgb = read_image(&img.image)?.to_rgb8();
+        let Some(mask) = &img.mask else {
+            return Err(EvalError::Input(format!(
+                "{}: no mask to train from",
+                img.name
+            )));
+        };
+        let mask = read_mask(mask, rgb.dimensions())?;
+        loaded.push((rgb, mask, img));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let views: Vec<crate::train::RealView> = loaded
+        .iter()
+        .map(|(rgb, mask, img)| crate::train::RealView {
+            rgb,
+            mask,
+            view_deg: (img.theta_deg, img.phi_deg),
+            distance_m: img.distance_m,
+        })
+        .collect();
+    let mut db = crate::train::train_real_views(object.name(), &views, config)?;
+    crate::train::add_shape(&mut db, object, symmetry);
+    Ok(db)
+}
+
 /// The recipe of a database for a dataset's camera: training views from
 /// the lowest elevation its annotations show (rounded down to 10°, at
 /// least 0°: the renderer's camera stays above the table) up to 90°, at

@@ -796,9 +796,6 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
     if rows.is_empty() {
         return Err(EvalError::Input(format!("{}: no rows", labels.display())));
     }
-    let mut distances: Vec<f64> = rows.iter().map(|r| r.distance_m).collect();
-    distances.sort_by(f64::total_cmp);
-    let train_distance = distances[distances.len() / 2];
     let bar = protocol::progress(rows.len() as u64, "loading");
     let mut images = Vec::with_capacity(rows.len());
     for row in &rows {
@@ -822,23 +819,59 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let labelled: Vec<LabelledView> = images
+    let views: Vec<RealView> = images
         .iter()
-        .map(|(rgb, mask, row)| {
-            LabelledView::new(
-                rgb.as_raw(),
-                mask,
-                rgb.dimensions(),
-                (row.theta_deg as f32, row.phi_deg as f32),
-                (train_distance / row.distance_m) as f32,
-            )
+        .map(|(rgb, mask, row)| RealView {
+            rgb,
+            mask,
+            view_deg: (row.theta_deg, row.phi_deg),
+            distance_m: row.distance_m,
         })
         .collect();
     let name = dir
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "object".into());
-    train_views(&name, train_distance as f32, &labelled, config)
+    train_real_views(&name, &views, config)
+}
+
+/// One photograph of the object to train from.
+pub struct RealView<'a> {
+    /// The image.
+    pub rgb: &'a image::RgbImage,
+    /// The object's pixels (non-zero), one byte per pixel.
+    pub mask: &'a [u8],
+    /// Elevation and azimuth it is seen from, degrees.
+    pub view_deg: (f64, f64),
+    /// Distance to the object's centre, metres.
+    pub distance_m: f64,
+}
+
+/// Histograms and recognition model from photographs of the object, at
+/// their median distance (each view scaled to it).
+pub fn train_real_views(
+    name: &str,
+    views: &[RealView<'_>],
+    config: &TrainConfig,
+) -> Result<ViewDatabase, EvalError> {
+    let mut distances: Vec<f64> = views.iter().map(|v| v.distance_m).collect();
+    distances.sort_by(f64::total_cmp);
+    let Some(&train_distance) = distances.get(distances.len() / 2) else {
+        return Err(EvalError::Input(format!("{name}: no views to train from")));
+    };
+    let labelled: Vec<LabelledView> = views
+        .iter()
+        .map(|v| {
+            LabelledView::new(
+                v.rgb.as_raw(),
+                v.mask,
+                v.rgb.dimensions(),
+                (v.view_deg.0 as f32, v.view_deg.1 as f32),
+                (train_distance / v.distance_m) as f32,
+            )
+        })
+        .collect();
+    train_views(name, train_distance as f32, &labelled, config)
 }
 
 /// Reads an image; errors name the file.

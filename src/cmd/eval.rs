@@ -211,6 +211,28 @@ pub struct EvalArgs {
     /// at least 1.
     #[arg(long, value_name = "FILE.csv", requires = "bop")]
     bop_results: Option<PathBuf>,
+    /// --bop: train the database from the dataset's own photographs
+    /// instead of the model's renders (the paper's route: real views, the
+    /// histograms from their annotated masks; the model still gives the
+    /// shape): those of the images with an even (odd) id, and evaluate on
+    /// the others.
+    #[arg(
+        long,
+        value_enum,
+        value_name = "PARITY",
+        requires = "bop",
+        conflicts_with = "db"
+    )]
+    train_on: Option<ParityArg>,
+}
+
+/// `--train-on`: which images train the database.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ParityArg {
+    /// Images with an even id.
+    Even,
+    /// Images with an odd id.
+    Odd,
 }
 
 /// Where `acch eval --bop/--labels` takes the object from.
@@ -522,9 +544,31 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
             object,
         )
     };
-    let mut db = match (&args.db, &object) {
-        (Some(path), _) => acch_core::ViewDatabase::load(path)?,
-        (None, Some(object)) if args.bop.is_some() => {
+    // --train-on: the database from some of the photographs, the
+    // evaluation on the rest.
+    let (images, trained) = match (args.train_on, &object) {
+        (Some(parity), Some(object)) => {
+            let parity = match parity {
+                ParityArg::Even => dataset::ImageParity::Even,
+                ParityArg::Odd => dataset::ImageParity::Odd,
+            };
+            let (train, test): (Vec<_>, Vec<_>) = images.into_iter().partition(|i| parity.holds(i));
+            eprintln!(
+                "trained from {} instances' photographs ({parity:?} image ids), evaluated on the other {}",
+                train.len(),
+                test.len()
+            );
+            let config = args.histogram.train_config()?;
+            let symmetry = symmetry.clone().unwrap_or_else(acch_shape::Symmetry::none);
+            let db = dataset::train_on_images(&train, object, &symmetry, &config)?;
+            (test, Some(db))
+        }
+        _ => (images, None),
+    };
+    let mut db = match (trained, &args.db, &object) {
+        (Some(db), _, _) => db,
+        (None, Some(path), _) => acch_core::ViewDatabase::load(path)?,
+        (None, None, Some(object)) if args.bop.is_some() => {
             // The dataset's camera: its range of views and distance.
             let recipe = dataset::dataset_recipe(&images, object);
             eprintln!(
@@ -538,8 +582,8 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
             );
             acch_eval::train::cached_recipe_database(object, None, recipe)?.0
         }
-        (None, Some(object)) => acch_eval::train::cached_database(object, None)?.0,
-        (None, None) => bail!("no database: name one with --db"),
+        (None, None, Some(object)) => acch_eval::train::cached_database(object, None)?.0,
+        (None, None, None) => bail!("no database: name one with --db"),
     };
     // The dataset's (or the declared) symmetry of the object.
     if let (Some(symmetry), Ok(Some((model, _)))) = (&symmetry, acch_shape::stored(&db)) {
