@@ -272,7 +272,7 @@ fn valid_database() -> &'static PathBuf {
         // The file this build's run trained or loaded, not any fruitbox
         // database another build left in the shared cache.
         let object = acch_capture::Object::builtin("fruitbox").unwrap();
-        let path = acch_eval::train::cached_database_path(&object, None, false);
+        let path = acch_train::cache::cached_database_path(&object, None, false);
         assert!(path.exists(), "{} was not cached", path.display());
         path
     })

@@ -18,7 +18,7 @@ fn visible_part_matching_holds_an_occluded_view_where_the_normalised_match_fails
     let (mut scenes, mut visible, mut normalised) = (0usize, 0usize, 0usize);
     for k in 3000..3004 {
         let object = Arc::new(Object::builtin(&format!("generated-{k}")).unwrap());
-        let (db, _) = acch_eval::train::cached_database(&object, None).unwrap();
+        let (db, _) = acch_train::cache::cached_database(&object, None).unwrap();
         let by = |m| PoseEstimator::new(db.clone()).unwrap().with_matching(m);
         let (mut vis, mut norm) = (by(Matching::Visible), by(Matching::Normalised));
         assert_eq!(
@@ -74,7 +74,7 @@ fn the_region_of_an_object_a_bar_parts_holds_both_parts() {
     let (mut visible, mut missed) = (0usize, 0usize);
     for k in 3000..3004 {
         let object = Arc::new(Object::builtin(&format!("generated-{k}")).unwrap());
-        let (db, _) = acch_eval::train::cached_database(&object, None).unwrap();
+        let (db, _) = acch_train::cache::cached_database(&object, None).unwrap();
         let mut chain = protocol::chain(&db).unwrap();
         for b in 0..3 {
             let (mut config, seed, poses) =

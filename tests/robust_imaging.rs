@@ -668,7 +668,7 @@ fn single_image_chains(
     use acch_pipeline::stages::SINGLE_IMAGE_LIGHT_SEARCH;
 
     let object = std::sync::Arc::new(Object::builtin(name).unwrap());
-    let (db, _) = acch_eval::train::cached_database(&object, None).unwrap();
+    let (db, _) = acch_train::cache::cached_database(&object, None).unwrap();
     let distance_m = db.train_distance_m as f64;
     let chain =
         || acch_eval::protocol::chain_at(&db, distance_m, SINGLE_IMAGE_LIGHT_SEARCH).unwrap();

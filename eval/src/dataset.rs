@@ -12,7 +12,6 @@
 use crate::EvalError;
 use crate::bop;
 use crate::protocol::{errors_fail, progress, rotation_error_deg};
-use crate::train::{read_image, read_mask};
 use acch_capture::labels::read_labels;
 use acch_core::{IndexImage, ViewDatabase};
 use acch_pipeline::stage::{StageCounters, step};
@@ -20,6 +19,7 @@ use acch_pipeline::stages::Segmented;
 use acch_pipeline::wire::{Intrinsics, StageId};
 use acch_pipeline::{Chain, FrameHeader, Stage, StageSettings};
 use acch_pose::phi_error;
+use acch_train::views::{read_image, read_mask};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -527,17 +527,17 @@ pub fn train_on_images(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let views: Vec<crate::train::RealView> = loaded
+    let views: Vec<acch_train::views::RealView> = loaded
         .iter()
-        .map(|(rgb, mask, img)| crate::train::RealView {
+        .map(|(rgb, mask, img)| acch_train::views::RealView {
             rgb,
             mask,
             view_deg: (img.theta_deg, img.phi_deg),
             distance_m: img.distance_m,
         })
         .collect();
-    let mut db = crate::train::train_real_views(object.name(), &views, config)?;
-    crate::train::add_shape(&mut db, object, symmetry);
+    let mut db = acch_train::views::train_real_views(object.name(), &views, config)?;
+    acch_train::views::add_shape(&mut db, object, symmetry);
     Ok(db)
 }
 
@@ -551,7 +551,7 @@ pub fn train_on_images(
 pub fn dataset_recipe(
     images: &[LabelledImage],
     object: &acch_capture::Object,
-) -> crate::train::Recipe {
+) -> acch_train::cache::Recipe {
     let lowest = images
         .iter()
         .map(|i| i.theta_deg)
@@ -566,7 +566,7 @@ pub fn dataset_recipe(
         .get((rolls.len() * 95 / 100).min(rolls.len().saturating_sub(1)))
         .copied()
         .unwrap_or(0.0);
-    crate::train::Recipe {
+    acch_train::cache::Recipe {
         roll_search_deg: ((roll / 15.0).ceil() * 15.0).min(180.0),
         lowest_theta_deg: Some(((lowest / 10.0).floor() * 10.0) as u8),
         distance_radii: median.map(|d| ((d / object.radius_m()) * 10.0).round() / 10.0),

@@ -1,4 +1,4 @@
-//! acch's evaluation protocols and training recipe, on the in-process
+//! acch's evaluation protocols, on the in-process
 //! [`Chain`](acch_pipeline::Chain) of the very stages `acch run` deploys:
 //!
 //! - [`table1`]: the paper's table 1, pose with ground-truth masks;
@@ -12,11 +12,11 @@
 //! - [`multi`]: several known objects in one scene, each with the others
 //!   known and alone;
 //! - [`dataset`]: labelled photographs the user brings, a [`bop`] split or
-//!   a folder with labels.csv;
-//! - [`train`]: an object's whole database, and the cached default.
+//!   a folder with labels.csv.
 //!
 //! One home for what they share ([`protocol`]): the paper's grid, the
-//! backgrounds and the failure rule.
+//! backgrounds and the failure rule. The databases they run on are trained
+//! by [`acch_train`], the layer below.
 
 pub mod bop;
 pub mod dataset;
@@ -28,7 +28,6 @@ pub mod roll;
 pub mod sequence;
 pub mod table1;
 pub mod table2;
-pub mod train;
 
 use std::path::PathBuf;
 
@@ -87,6 +86,9 @@ pub enum EvalError {
     /// A worker of a parallel loop failed to start.
     #[error("{0}")]
     Worker(String),
+    /// A database could not be trained or its cache used.
+    #[error(transparent)]
+    Training(#[from] acch_train::TrainingError),
 }
 
 /// Writes `value` as pretty JSON (with a final newline) to `path`.

@@ -29,11 +29,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-/// The roll search the databases of several objects are trained for by
-/// default (`acch run --objects`, this protocol): an object standing off
-/// the optical axis is seen rolled, and without the search its wrong
-/// estimates are accepted (docs/multi.md).
-pub const OFF_AXIS_ROLL_SEARCH_DEG: f64 = 45.0;
+pub use acch_train::cache::OFF_AXIS_ROLL_SEARCH_DEG;
 
 /// Camera elevations of the scenes, degrees: above the database's lowest
 /// training elevation, below the pole.

@@ -405,7 +405,7 @@ pub fn robust(
         backgrounds: BACKGROUNDS.iter().map(|b| b.to_string()).collect(),
         database: o.database,
         confidence_input: acch_confidence::Model::load(db)
-            .map_or("none", |m| crate::train::kind_name(m.kind())),
+            .map_or("none", |m| acch_train::confidence::kind_name(m.kind())),
         rows,
         total_seconds: start.elapsed().as_secs_f64(),
     })

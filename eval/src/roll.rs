@@ -10,13 +10,14 @@
 //! an upright network) runs on the same scenes beside it.
 
 use crate::protocol::{self, fails_with_roll};
-use crate::train::{self, ConfidenceInput, ConfidenceScenes, RenderedTraining};
 use crate::{EvalError, write_json};
 use acch_capture::{DEFAULT_DISTANCE, Object, Rendered, TextureSet, ViewSpec};
 use acch_core::ViewDatabase;
 use acch_pipeline::Hop;
 use acch_pipeline::wire::StageId;
 use acch_pose::train::TrainConfig;
+use acch_train::confidence::{ConfidenceChoice, ConfidenceInput, ConfidenceScenes, train_object};
+use acch_train::views::RenderedTraining;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -97,7 +98,7 @@ pub struct RollReport {
     /// The search the database was trained with, degrees.
     pub search_deg: f64,
     /// The confidence input chosen for the roll-trained database.
-    pub confidence_choice: Option<train::ConfidenceChoice>,
+    pub confidence_choice: Option<ConfidenceChoice>,
     /// The rows.
     pub rows: Vec<RollRow>,
     /// Time of the trainings, s.
@@ -133,7 +134,7 @@ pub fn roll(
             ..RenderedTraining::default()
         };
         let confidence = Some((o.confidence_scenes.max(1), ConfidenceInput::Auto));
-        train::train_object(&object, config, &training, confidence)
+        train_object(&object, config, &training, confidence)
     };
     let (rolled_db, choice) = trained(ConfidenceScenes {
         roll_deg: o.search_deg,

@@ -52,7 +52,6 @@ use crate::protocol::{self, errors_fail as fails, scene_seed, view_errors as err
 use crate::review::{
     Policy, ReviewRow, review_starts, run_episode, summarise_review, view_ambiguity,
 };
-use crate::train::{self, RenderedTraining};
 use crate::{EvalError, write_json};
 use acch_capture::{Background, DEFAULT_DISTANCE, Object, TextureSet, Trajectory};
 use acch_core::ViewDatabase;
@@ -61,6 +60,8 @@ use acch_pipeline::stages::seeding::KNOWN_DISTANCE_RELATIVE_SIGMA;
 use acch_pipeline::{Chain, Hop};
 use acch_pose::train::TrainConfig;
 use acch_seeding::{FilterConfig, theta_censored};
+use acch_train::confidence::{self, ConfidenceScenes};
+use acch_train::views::{RenderedTraining, train_rendered};
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -402,13 +403,13 @@ fn train(
     config: &TrainConfig,
     scenes: usize,
 ) -> Result<ViewDatabase, EvalError> {
-    let mut db = train::train_rendered(object, config, &RenderedTraining::default())?;
-    let (choice, model, _) = train::choose_confidence_input(
+    let mut db = train_rendered(object, config, &RenderedTraining::default())?;
+    let (choice, model, _) = confidence::choose_confidence_input(
         &db,
         object,
         scenes,
         DEFAULT_DISTANCE,
-        train::ConfidenceScenes::default(),
+        ConfidenceScenes::default(),
         0,
     )?;
     tracing::info!("{choice}");

@@ -6,7 +6,6 @@
 //! annulus, palette space, offsets, refinement, scale from the ROI.
 
 use crate::protocol::{self, PAPER_GRID, fails};
-use crate::train::train_views;
 use crate::{EvalError, write_json};
 use acch_capture::{
     Background, DEFAULT_DISTANCE, Object, Rendered, TextureSet, ViewPose, ViewSpec,
@@ -17,6 +16,7 @@ use acch_pipeline::wire::{Intrinsics, Outcome};
 use acch_pipeline::{FrameHeader, Stage, StageSettings};
 use acch_pose::train::{LabelledView, TrainConfig};
 use acch_pose::{Refinement, phi_error};
+use acch_train::views::train_views;
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;

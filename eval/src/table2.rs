@@ -18,9 +18,6 @@
 //! view, and the time of recognition + segmentation.
 
 use crate::protocol::{self, fails};
-use crate::train::{
-    self, ConfidenceChoice, DEFAULT_CONFIDENCE_SCENES, RenderedTraining, kind_name,
-};
 use crate::{EvalError, write_json};
 use acch_capture::{DEFAULT_DISTANCE, Intrinsics, Object, TextureSet, ViewSpec};
 use acch_pipeline::stages::{Pose, Segmented};
@@ -29,6 +26,10 @@ use acch_pipeline::{Hop, Stage, StageSettings};
 use acch_pose::phi_error;
 use acch_pose::train::TrainConfig;
 use acch_recognition::RecognitionModel;
+use acch_train::confidence::{
+    self, ConfidenceChoice, ConfidenceScenes, DEFAULT_CONFIDENCE_SCENES, kind_name,
+};
+use acch_train::views::{RenderedTraining, train_rendered};
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -177,18 +178,18 @@ pub fn table2(
         light_directions,
         ..RenderedTraining::default()
     };
-    let mut db = train::train_rendered(&object, config, &training)?;
+    let mut db = train_rendered(&object, config, &training)?;
     // The deployed recipe: both inputs trained on the confidence-training
     // scenes, the one with the higher AUC on the validation scenes kept;
     // the other is measured beside it.
-    let (choice, model, alt_model) = train::choose_confidence_input(
+    let (choice, model, alt_model) = confidence::choose_confidence_input(
         &db,
         &object,
         DEFAULT_CONFIDENCE_SCENES,
         DEFAULT_DISTANCE,
-        train::ConfidenceScenes {
+        ConfidenceScenes {
             light_turned: light_directions > 1,
-            ..train::ConfidenceScenes::default()
+            ..ConfidenceScenes::default()
         },
         0,
     )?;

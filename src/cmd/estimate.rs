@@ -2,12 +2,12 @@
 
 use acch_confidence::Model as ConfidenceModel;
 use acch_core::{IndexImage, Rect, ViewDatabase};
-use acch_eval::train::{read_image, read_mask};
 use acch_pipeline::source::sized_intrinsics;
 use acch_pipeline::wire::Intrinsics;
 use acch_pipeline::{Chain, FrameHeader, Seeded, StageSettings};
 use acch_pose::train::mask_bbox;
 use acch_pose::{Estimate, PoseEstimator, Refinement};
+use acch_train::views::{read_image, read_mask};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use image::{Rgb, RgbImage};

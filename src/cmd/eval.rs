@@ -86,7 +86,7 @@ pub struct EvalArgs {
     max_moves: usize,
     /// sequence: confidence-training scenes per background (fewer train
     /// faster and worse).
-    #[arg(long, default_value_t = acch_eval::train::DEFAULT_CONFIDENCE_SCENES)]
+    #[arg(long, default_value_t = acch_train::confidence::DEFAULT_CONFIDENCE_SCENES)]
     confidence_scenes: usize,
     /// Seed of the scene and of the test poses (training views use seed 0).
     #[arg(long, default_value_t = 1)]
@@ -385,18 +385,18 @@ fn robust_databases(
     args: &EvalArgs,
     object: &Arc<acch_capture::Object>,
 ) -> Result<robust::Databases, acch_eval::EvalError> {
-    let recipe = acch_eval::train::Recipe {
+    let recipe = acch_train::cache::Recipe {
         imaging: args.confidence_imaging,
         light_directions: args.light_directions as usize,
         smoothing: args.histogram.smoothing.fixed(),
         ..Default::default()
     };
-    let (db, _) = acch_eval::train::cached_recipe_database(object, None, recipe)?;
+    let (db, _) = acch_train::cache::cached_recipe_database(object, None, recipe)?;
     if args.histogram.smoothing != SmoothingChoice::ByFrame {
         return Ok((db, None));
     }
     let (smoothed, _) =
-        acch_eval::train::cached_recipe_database(object, None, recipe.smoothed_set())?;
+        acch_train::cache::cached_recipe_database(object, None, recipe.smoothed_set())?;
     Ok((db, Some(smoothed)))
 }
 
@@ -448,7 +448,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
     let databases = objects
         .iter()
         .map(|o| {
-            let recipe = acch_eval::train::Recipe {
+            let recipe = acch_train::cache::Recipe {
                 roll_search_deg: args
                     .roll_search_deg
                     .unwrap_or(multi::OFF_AXIS_ROLL_SEARCH_DEG),
@@ -457,7 +457,7 @@ fn run_multi(args: &EvalArgs, objects: &[Arc<acch_capture::Object>]) -> Result<(
                 imaging: args.confidence_imaging,
                 ..Default::default()
             };
-            acch_eval::train::cached_recipe_database(o, None, recipe).map(|(db, _)| db)
+            acch_train::cache::cached_recipe_database(o, None, recipe).map(|(db, _)| db)
         })
         .collect::<Result<Vec<_>, _>>()?;
     let report = multi::multi(objects, &databases, &options)?;
@@ -501,7 +501,7 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
             None => bop::symmetry_of_model(&info, &model),
         };
         let symmetry = symmetry.insert(declared);
-        let cache = acch_eval::train::cache_dir(None);
+        let cache = acch_train::cache::cache_dir(None);
         let (images, mut derived) =
             dataset::from_bop(dir, &args.split, obj_id, &model, symmetry, &cache)?;
         if info_derived {
@@ -580,9 +580,9 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
                     * object.radius_m(),
                 recipe.roll_search_deg
             );
-            acch_eval::train::cached_recipe_database(object, None, recipe)?.0
+            acch_train::cache::cached_recipe_database(object, None, recipe)?.0
         }
-        (None, None, Some(object)) => acch_eval::train::cached_database(object, None)?.0,
+        (None, None, Some(object)) => acch_train::cache::cached_database(object, None)?.0,
         (None, None, None) => bail!("no database: name one with --db"),
     };
     // The dataset's (or the declared) symmetry of the object.

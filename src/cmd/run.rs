@@ -278,18 +278,19 @@ impl RunArgs {
         if cfg.db.is_none() {
             let object = std::sync::Arc::new(cfg.scene_object()?);
             let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
-            let recipe = acch_eval::train::Recipe {
+            let recipe = acch_train::cache::Recipe {
                 light_directions: cfg.light_directions,
                 smoothing: cfg.smoothing(),
                 imaging: cfg.confidence_imaging,
                 ..Default::default()
             };
             let (_, path) =
-                acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?;
+                acch_train::cache::cached_recipe_database(&object, cache.clone(), recipe)?;
             cfg.db = Some(path);
             if cfg.smoothing_choice() == SmoothingChoice::ByFrame {
                 let smoothed = recipe.smoothed_set();
-                let (_, path) = acch_eval::train::cached_recipe_database(&object, cache, smoothed)?;
+                let (_, path) =
+                    acch_train::cache::cached_recipe_database(&object, cache, smoothed)?;
                 cfg.smoothed_db = Some(path);
             }
         }
@@ -310,14 +311,17 @@ impl RunArgs {
                 ObjectEntry::Database(path) => Ok(path),
                 other => {
                     let object = std::sync::Arc::new(other.object(up, cfg.mesh_unit_m)?);
-                    let recipe = acch_eval::train::Recipe {
-                        roll_search_deg: acch_eval::multi::OFF_AXIS_ROLL_SEARCH_DEG,
+                    let recipe = acch_train::cache::Recipe {
+                        roll_search_deg: acch_train::cache::OFF_AXIS_ROLL_SEARCH_DEG,
                         light_directions: cfg.light_directions,
                         smoothing: cfg.smoothing(),
                         imaging: cfg.confidence_imaging,
                         ..Default::default()
                     };
-                    Ok(acch_eval::train::cached_recipe_database(&object, cache.clone(), recipe)?.1)
+                    Ok(
+                        acch_train::cache::cached_recipe_database(&object, cache.clone(), recipe)?
+                            .1,
+                    )
                 }
             })
             .collect()

@@ -3,7 +3,8 @@
 
 use super::common::{HistogramArgs, ObjectArgs};
 use acch_capture::{Background, DEFAULT_DISTANCE, ViewSpec};
-use acch_eval::train::{self, RenderedTraining};
+use acch_train::confidence::{ConfidenceScenes, DEFAULT_CONFIDENCE_SCENES, train_object};
+use acch_train::views::{RenderedTraining, train_from_folder};
 use anyhow::{Result, bail};
 use clap::Args;
 use std::path::PathBuf;
@@ -35,7 +36,7 @@ pub struct TrainArgs {
     histogram: HistogramArgs,
     /// Confidence network: random-pose scenes rendered per background (plain,
     /// A, B, C, clutter, clutter-similar) to train it on; 0 leaves it out.
-    #[arg(long, default_value_t = train::DEFAULT_CONFIDENCE_SCENES)]
+    #[arg(long, default_value_t = DEFAULT_CONFIDENCE_SCENES)]
     confidence_scenes: usize,
     /// For a camera that rolls: the pose stage searches the roll within
     /// ±DEG, the confidence network is trained on the responses of that
@@ -106,18 +107,18 @@ pub enum ConfidenceInput {
     Grounded,
 }
 
-impl From<ConfidenceInput> for train::ConfidenceInput {
+impl From<ConfidenceInput> for acch_train::confidence::ConfidenceInput {
     fn from(c: ConfidenceInput) -> Self {
         match c {
-            ConfidenceInput::Auto => train::ConfidenceInput::Auto,
+            ConfidenceInput::Auto => acch_train::confidence::ConfidenceInput::Auto,
             ConfidenceInput::Features => {
-                train::ConfidenceInput::Only(acch_confidence::Kind::Features)
+                acch_train::confidence::ConfidenceInput::Only(acch_confidence::Kind::Features)
             }
             ConfidenceInput::Response => {
-                train::ConfidenceInput::Only(acch_confidence::Kind::Response)
+                acch_train::confidence::ConfidenceInput::Only(acch_confidence::Kind::Response)
             }
             ConfidenceInput::Grounded => {
-                train::ConfidenceInput::Only(acch_confidence::Kind::Grounded)
+                acch_train::confidence::ConfidenceInput::Only(acch_confidence::Kind::Grounded)
             }
         }
     }
@@ -162,7 +163,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let start = std::time::Instant::now();
     let db = match &args.images {
         Some(dir) => {
-            let db = train::train_from_folder(dir, &config)?;
+            let db = train_from_folder(dir, &config)?;
             println!(
                 "no confidence network (labelled images give no failures to learn from): run it with `acch run --unrated`"
             );
@@ -175,7 +176,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 background: args.background,
                 distance: args.distance,
                 seed: args.seed,
-                scenes: train::ConfidenceScenes {
+                scenes: ConfidenceScenes {
                     roll_deg: confidence_roll_deg,
                     search_deg: args.roll_search_deg,
                     imaging: args.confidence_imaging,
@@ -185,7 +186,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 symmetry: args.symmetry.clone(),
             };
             let confidence = Some((args.confidence_scenes, args.confidence_input.into()));
-            let (mut db, choice) = train::train_object(&object, &config, &training, confidence)?;
+            let (mut db, choice) = train_object(&object, &config, &training, confidence)?;
             if let Some(c) = choice {
                 println!("{c}");
             }

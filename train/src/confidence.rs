@@ -1,24 +1,18 @@
-//! The training recipe: an object's whole database (view histograms, the
-//! recognition model, and the confidence network trained on rendered
-//! scenes whose ground truth labels each estimate reliable or not), from a
-//! rendered object or a folder of labelled images, and the cached default
-//! database `acch run` uses.
+//! The confidence network: its training (and validation) scenes, the
+//! samples collected on them, the choice of its input on validation scenes,
+//! its training, and an object's whole rendered database with it.
 
-use crate::EvalError;
-use crate::protocol::{self, PAPER_GRID};
-use acch_capture::{
-    Background, DEFAULT_DISTANCE, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose,
-    ViewSpec,
-};
+use crate::TrainingError;
+use crate::scenes;
+use crate::views::{RenderedTraining, train_rendered};
+use acch_capture::{Background, Object, Rendered, Renderer, SceneConfig, TextureSet, ViewPose};
 use acch_confidence::Kind;
-use acch_core::{Smoothing, ViewDatabase};
+use acch_core::ViewDatabase;
 use acch_pipeline::stages::{Confidence, Stages};
 use acch_pipeline::{Chain, StageSettings};
-use acch_pose::train::{LabelledView, TrainConfig, build_database};
-use acch_recognition::{RecognitionModel, RecognitionParams};
+use acch_pose::train::TrainConfig;
 use rayon::prelude::*;
 use serde;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Backgrounds the confidence network is trained on: every kind the
@@ -29,10 +23,6 @@ pub const CONFIDENCE_BACKGROUNDS: [&str; 6] =
 /// Seeds of confidence-training scenes start here; evaluations use small
 /// seeds, so training and evaluation scenes never share a scene or a pose.
 pub const CONFIDENCE_SEED_BASE: u64 = 1_000_000;
-
-/// Revision of the default training recipe; part of cached databases'
-/// names so that a changed recipe retrains instead of reusing a stale file.
-pub const TRAINING_REVISION: u32 = 8;
 
 /// Seeds of the validation scenes the network's input is chosen on start
 /// here: disjoint from the training scenes' and from every protocol's test
@@ -68,31 +58,6 @@ pub const DEFAULT_CONFIDENCE_SCENES: usize = 80;
 /// to reject them (a robot's camera is not confined to the grid's range).
 pub const CONFIDENCE_MIN_THETA_DEG: f64 = 20.0;
 
-/// How to render the training views.
-#[derive(Clone, Debug)]
-pub struct RenderedTraining {
-    /// The views (the paper's grid by default).
-    pub views: ViewSpec,
-    /// Their background.
-    pub background: Background,
-    /// Camera distance, object bounding radii (the renderer's unit; the
-    /// database stores it in metres, by the object's real radius).
-    pub distance: f64,
-    /// Seed of the views and the scene.
-    pub seed: u64,
-    /// How the confidence network's scenes roll, whether the pose stage
-    /// searches the roll on them and whether some are imaged under other
-    /// light (upright, no search, the training light by default).
-    pub scenes: ConfidenceScenes,
-    /// The light from this many directions around the vertical, evenly
-    /// spaced from the training light's (1: that one only); each view's
-    /// histogram is the mean over them, the palette sees them all.
-    pub light_directions: usize,
-    /// The turns that leave the object looking the same: its shape's
-    /// candidates that differ only by one are not rivals.
-    pub symmetry: acch_shape::Symmetry,
-}
-
 /// How the confidence-training (and validation) scenes are taken: their
 /// camera roll and the roll search their estimates are made with, and
 /// whether some are imaged under other light and a worse camera.
@@ -120,7 +85,7 @@ pub struct ConfidenceScenes {
 
 impl ConfidenceScenes {
     /// Whether the scenes' estimates are labelled by the whole rotation
-    /// ([`protocol::fails_with_roll`]) rather than the paper's rule on
+    /// ([`scenes::fails_with_roll`]) rather than the paper's rule on
     /// (θ, φ): whenever anything rolls. Upright training without the
     /// search keeps the paper's rule, so its database is what it always
     /// was, byte for byte.
@@ -140,108 +105,11 @@ impl ConfidenceScenes {
     /// Whether an estimate of scene truth `truth` is reliable.
     fn reliable(&self, estimate: [f32; 3], truth: [f32; 3]) -> bool {
         if self.labels_by_rotation() {
-            !protocol::fails_with_roll(estimate, truth)
+            !scenes::fails_with_roll(estimate, truth)
         } else {
-            !protocol::fails((estimate[0], estimate[1]), (truth[0], truth[1]))
+            !scenes::fails((estimate[0], estimate[1]), (truth[0], truth[1]))
         }
     }
-}
-
-impl Default for RenderedTraining {
-    /// The paper's grid on the plain background at the default distance.
-    fn default() -> Self {
-        RenderedTraining {
-            views: PAPER_GRID.parse().expect("the paper grid parses"),
-            background: Background::default(),
-            distance: DEFAULT_DISTANCE,
-            seed: 0,
-            scenes: ConfidenceScenes::default(),
-            light_directions: 1,
-            symmetry: acch_shape::Symmetry::none(),
-        }
-    }
-}
-
-/// Histograms and recognition model from labelled views taken at
-/// `distance_m` metres.
-pub fn train_views(
-    object: &str,
-    distance_m: f32,
-    views: &[LabelledView<'_>],
-    config: &TrainConfig,
-) -> Result<ViewDatabase, EvalError> {
-    let mut db = build_database(object, distance_m, views, config)?;
-    let recognition = RecognitionModel::train(views, &db.palette, &RecognitionParams::default())?;
-    db.sections
-        .insert(acch_recognition::SECTION.to_owned(), recognition.to_bytes());
-    Ok(db)
-}
-
-/// Renders the training views of `object` and trains histograms and the
-/// recognition model.
-pub fn train_rendered(
-    object: &Arc<Object>,
-    config: &TrainConfig,
-    training: &RenderedTraining,
-) -> Result<ViewDatabase, EvalError> {
-    let renders = render_training(object, training);
-    let labelled: Vec<LabelledView> = renders
-        .iter()
-        .map(|r| protocol::labelled(r, training.distance))
-        .collect();
-    let distance_m = training.distance * object.radius_m();
-    let mut db = train_views(object.name(), distance_m as f32, &labelled, config)?;
-    add_shape(&mut db, object, &training.symmetry);
-    Ok(db)
-}
-
-/// Records `object`'s shape over the default grid ([`acch_shape::default_grid`])
-/// and its `symmetry` in `db`.
-pub fn add_shape(db: &mut ViewDatabase, object: &Object, symmetry: &acch_shape::Symmetry) {
-    let model = acch_shape::ShapeModel::train(object, &acch_shape::default_grid());
-    acch_shape::store(db, &model, symmetry);
-}
-
-/// The training views of `object` as `training` renders them.
-fn render_training(object: &Arc<Object>, training: &RenderedTraining) -> Vec<Rendered> {
-    let views = training.views.views(training.distance, training.seed);
-    let directions = training.light_directions.max(1);
-    let mut renders = Vec::with_capacity(views.len() * directions);
-    for k in 0..directions {
-        let mut renderer = protocol::renderer(
-            object.clone(),
-            training.background,
-            TextureSet::Training,
-            training.seed,
-        );
-        renderer.set_light_azimuth_deg(360.0 * k as f32 / directions as f32);
-        renders.extend(protocol::render_views(
-            &renderer,
-            &views,
-            training.seed,
-            "train views",
-        ));
-    }
-    renders
-}
-
-/// Gives `db`, trained by `training` before databases recorded their
-/// views' colour maps, the maps its training would record now: its
-/// training views rendered again and measured by its own palette. Nothing
-/// else of it depends on them, so it equals a database trained afresh.
-fn add_view_maps(
-    db: &mut ViewDatabase,
-    object: &Arc<Object>,
-    training: &RenderedTraining,
-) -> Result<(), EvalError> {
-    let renders = render_training(object, training);
-    let labelled: Vec<LabelledView> = renders
-        .iter()
-        .map(|r| protocol::labelled(r, training.distance))
-        .collect();
-    let maps = acch_pose::colour_map::measure_view_maps(db, &labelled)?;
-    acch_pose::store_view_maps(db, &maps);
-    Ok(())
 }
 
 /// One estimate of a confidence-training scene.
@@ -265,7 +133,7 @@ pub fn unrated_chain(
     distance_m: f64,
     roll_search_deg: f64,
     light_search: usize,
-) -> Result<Chain, EvalError> {
+) -> Result<Chain, TrainingError> {
     let settings = StageSettings {
         width,
         height,
@@ -295,7 +163,7 @@ pub fn confidence_samples(
     seed_base: u64,
     distance: f64,
     scenes: ConfidenceScenes,
-) -> Result<Vec<ConfidenceSample>, EvalError> {
+) -> Result<Vec<ConfidenceSample>, TrainingError> {
     let params = acch_confidence::FeatureParams::default();
     // The network rates the colour histograms' response: its estimates are
     // theirs alone, labelled by the truth (the shape plays no part, and
@@ -318,9 +186,8 @@ pub fn confidence_samples(
         } else if scenes.light_turned {
             render_light_turned(object, background, &views, seed, name)
         } else {
-            let renderer =
-                protocol::renderer(object.clone(), background, TextureSet::Training, seed);
-            protocol::render_views(&renderer, &views, seed, name)
+            let renderer = scenes::renderer(object.clone(), background, TextureSet::Training, seed);
+            scenes::render_views(&renderer, &views, seed, name)
         };
         let (w, h) = renders.first().map_or((640, 480), |r| r.image.dimensions());
         let distance_m = distance * object.radius_m();
@@ -329,12 +196,12 @@ pub fn confidence_samples(
             .enumerate()
             .map_init(
                 || unrated_chain(db, w, h, distance_m, scenes.search_deg, light_search),
-                |chain, (i, r)| -> Result<Option<ConfidenceSample>, EvalError> {
+                |chain, (i, r)| -> Result<Option<ConfidenceSample>, TrainingError> {
                     let chain = chain
                         .as_mut()
-                        .map_err(|e| EvalError::Worker(e.to_string()))?;
+                        .map_err(|e| TrainingError::Worker(e.to_string()))?;
                     let out = chain.process(
-                        &protocol::frame_of(r, i as u64, false, object.radius_m()),
+                        &scenes::frame_of(r, i as u64, false, object.radius_m()),
                         r.image.as_raw(),
                     );
                     let Some(e) = out.pose().done() else {
@@ -427,7 +294,7 @@ fn render_light_turned(
 ) -> Vec<Rendered> {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x006c_6967_6874);
-    let lit = || protocol::renderer(object.clone(), background, TextureSet::Training, seed);
+    let lit = || scenes::renderer(object.clone(), background, TextureSet::Training, seed);
     let turned: Vec<Renderer> = (0..TURNED_LIGHTS)
         .map(|_| {
             let mut r = lit();
@@ -447,7 +314,7 @@ fn render_alternating(
     seed: u64,
     name: &str,
 ) -> Vec<Rendered> {
-    let bar = protocol::progress(views.len() as u64, name);
+    let bar = scenes::progress(views.len() as u64, name);
     let out = views
         .par_iter()
         .enumerate()
@@ -475,7 +342,7 @@ fn confidence_views(
     distance: f64,
     seed: u64,
     max_roll_deg: f64,
-) -> Result<Vec<ViewPose>, EvalError> {
+) -> Result<Vec<ViewPose>, TrainingError> {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     (0..n)
@@ -511,7 +378,7 @@ pub fn train_confidence(
     samples: &[ConfidenceSample],
     kind: Kind,
     seed: u64,
-) -> Result<(), EvalError> {
+) -> Result<(), TrainingError> {
     let data: Vec<(Vec<f32>, bool)> = samples
         .iter()
         .map(|s| {
@@ -521,7 +388,7 @@ pub fn train_confidence(
         .collect();
     let mut config = acch_confidence::TrainConfig::new(kind);
     config.seed = seed;
-    let bar = protocol::progress(config.epochs as u64, "confidence");
+    let bar = scenes::progress(config.epochs as u64, "confidence");
     let model = acch_confidence::train_with_progress(&data, &config, &mut |epoch, _loss| {
         bar.set_position(epoch as u64)
     })?;
@@ -613,7 +480,7 @@ pub fn choose_confidence_input(
         acch_confidence::Model,
         acch_confidence::Model,
     ),
-    EvalError,
+    TrainingError,
 > {
     let samples = |base| confidence_samples(db, object, per_background, base, distance, scenes);
     let train = samples(CONFIDENCE_SEED_BASE)?;
@@ -719,7 +586,7 @@ pub fn train_object(
     config: &TrainConfig,
     training: &RenderedTraining,
     confidence: Option<(usize, ConfidenceInput)>,
-) -> Result<(ViewDatabase, Option<ConfidenceChoice>), EvalError> {
+) -> Result<(ViewDatabase, Option<ConfidenceChoice>), TrainingError> {
     let mut db = train_rendered(object, config, training)?;
     acch_pose::store_roll_search_deg(&mut db, training.scenes.search_deg as f32);
     let Some((scenes, input)) = confidence.filter(|(n, _)| *n > 0) else {
@@ -728,7 +595,7 @@ pub fn train_object(
     match train_network(&mut db, object, training, scenes, input) {
         // Every training estimate right (or every one wrong): no network
         // can be learned, and the shape judges without one.
-        Err(EvalError::Confidence(acch_confidence::ConfidenceError::OneClass {
+        Err(TrainingError::Confidence(acch_confidence::ConfidenceError::OneClass {
             reliable,
             unreliable,
         })) if acch_shape::stored(&db).is_ok_and(|s| s.is_some()) => {
@@ -750,7 +617,7 @@ fn train_network(
     training: &RenderedTraining,
     scenes: usize,
     input: ConfidenceInput,
-) -> Result<Option<ConfidenceChoice>, EvalError> {
+) -> Result<Option<ConfidenceChoice>, TrainingError> {
     match input {
         ConfidenceInput::Auto => {
             let (choice, model, _) = choose_confidence_input(
@@ -788,463 +655,9 @@ fn train_network(
     }
 }
 
-/// Trains from `DIR/labels.csv` and the images (and masks) it names. Views
-/// without a mask use their bounding box, or the whole image.
-pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabase, EvalError> {
-    let labels = dir.join("labels.csv");
-    let rows = acch_capture::labels::read_labels(&labels)?;
-    if rows.is_empty() {
-        return Err(EvalError::Input(format!("{}: no rows", labels.display())));
-    }
-    let bar = protocol::progress(rows.len() as u64, "loading");
-    let mut images = Vec::with_capacity(rows.len());
-    for row in &rows {
-        let path = dir.join(&row.file);
-        let rgb = read_image(&path)?.to_rgb8();
-        let (w, h) = rgb.dimensions();
-        let mask = match (&row.mask, &row.bbox) {
-            (Some(m), _) => read_mask(&dir.join(m), (w, h))?,
-            (None, Some(b)) => {
-                let mut m = vec![0u8; (w * h) as usize];
-                for y in b.y..(b.y + b.height).min(h) {
-                    for x in b.x..(b.x + b.width).min(w) {
-                        m[(y * w + x) as usize] = 255;
-                    }
-                }
-                m
-            }
-            (None, None) => vec![255u8; (w * h) as usize],
-        };
-        images.push((rgb, mask, row));
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let views: Vec<RealView> = images
-        .iter()
-        .map(|(rgb, mask, row)| RealView {
-            rgb,
-            mask,
-            view_deg: (row.theta_deg, row.phi_deg),
-            distance_m: row.distance_m,
-        })
-        .collect();
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "object".into());
-    train_real_views(&name, &views, config)
-}
-
-/// One photograph of the object to train from.
-pub struct RealView<'a> {
-    /// The image.
-    pub rgb: &'a image::RgbImage,
-    /// The object's pixels (non-zero), one byte per pixel.
-    pub mask: &'a [u8],
-    /// Elevation and azimuth it is seen from, degrees.
-    pub view_deg: (f64, f64),
-    /// Distance to the object's centre, metres.
-    pub distance_m: f64,
-}
-
-/// Histograms and recognition model from photographs of the object, at
-/// their median distance (each view scaled to it).
-pub fn train_real_views(
-    name: &str,
-    views: &[RealView<'_>],
-    config: &TrainConfig,
-) -> Result<ViewDatabase, EvalError> {
-    let mut distances: Vec<f64> = views.iter().map(|v| v.distance_m).collect();
-    distances.sort_by(f64::total_cmp);
-    let Some(&train_distance) = distances.get(distances.len() / 2) else {
-        return Err(EvalError::Input(format!("{name}: no views to train from")));
-    };
-    let labelled: Vec<LabelledView> = views
-        .iter()
-        .map(|v| {
-            LabelledView::new(
-                v.rgb.as_raw(),
-                v.mask,
-                v.rgb.dimensions(),
-                (v.view_deg.0 as f32, v.view_deg.1 as f32),
-                (train_distance / v.distance_m) as f32,
-            )
-        })
-        .collect();
-    train_views(name, train_distance as f32, &labelled, config)
-}
-
-/// Reads an image; errors name the file.
-pub fn read_image(path: &Path) -> Result<image::DynamicImage, EvalError> {
-    image::open(path).map_err(|source| EvalError::Image {
-        path: path.to_owned(),
-        source,
-    })
-}
-
-/// Reads an object mask (any image; non-zero luma = object) that must match
-/// its image's size; errors name the file.
-pub fn read_mask(path: &Path, (w, h): (u32, u32)) -> Result<Vec<u8>, EvalError> {
-    let mask = read_image(path)?.to_luma8();
-    if mask.dimensions() != (w, h) {
-        return Err(EvalError::Input(format!(
-            "{}: mask is {}x{} but its image is {w}x{h}",
-            path.display(),
-            mask.width(),
-            mask.height()
-        )));
-    }
-    Ok(mask.into_raw())
-}
-
-/// Where default databases are cached: `dir`, else `$XDG_CACHE_HOME/acch`,
-/// `~/.cache/acch`, or the temporary directory.
-pub fn cache_dir(dir: Option<PathBuf>) -> PathBuf {
-    dir.or_else(|| std::env::var_os("XDG_CACHE_HOME").map(|d| PathBuf::from(d).join("acch")))
-        .or_else(|| std::env::var_os("HOME").map(|d| PathBuf::from(d).join(".cache/acch")))
-        .unwrap_or_else(|| std::env::temp_dir().join("acch"))
-}
-
-/// The file the default database of `object` is cached in (with
-/// `imaging`, the one whose confidence network saw imaged scenes): the
-/// format version, the build and the training recipe are in the name, so
-/// builds sharing a cache directory never read each other's databases.
-pub fn cached_database_path(object: &Object, dir: Option<PathBuf>, imaging: bool) -> PathBuf {
-    // The size is in the name: a database's distances are metres of it;
-    // a generated object's generator revision too: it is what draws it.
-    let generator = match acch_capture::generated_seed(object.name()) {
-        Some(_) => format!("-g{}", acch_capture::GENERATOR_REVISION),
-        None => String::new(),
-    };
-    cache_dir(dir).join(format!(
-        "{}{generator}-{:.1}mm-v{}-{}-r{}{}.acchdb",
-        object.name(),
-        object.radius_m() * 1000.0,
-        acch_core::database::FORMAT_VERSION,
-        env!("CARGO_PKG_VERSION"),
-        TRAINING_REVISION,
-        if imaging { "-imaging" } else { "" }
-    ))
-}
-
-/// What a cached database is trained for beyond the default recipe; each
-/// recipe has a file of its own beside the default one.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Recipe {
-    /// Confidence scenes imaged under other light and a worse camera
-    /// ([`ConfidenceScenes::imaging`]).
-    pub imaging: bool,
-    /// Confidence scenes rolled within ± this many degrees and estimated
-    /// with that roll search, which runs then use (0: upright, none).
-    pub roll_search_deg: f64,
-    /// Training views lit from this many directions around the vertical
-    /// ([`RenderedTraining::light_directions`]) and half the confidence
-    /// scenes lit from a turned one (1: the training light only).
-    pub light_directions: usize,
-    /// Views and frames smoothed before quantisation
-    /// ([`acch_core::smooth`]; off: the paper's raw pixels).
-    pub smoothing: Smoothing,
-    /// Training views at every 10° of elevation from this one up to 90°
-    /// (every 10° of azimuth) instead of the paper's grid: where a real
-    /// camera looks from (a dataset's range of views).
-    pub lowest_theta_deg: Option<u8>,
-    /// The training distance, object radii (default
-    /// [`DEFAULT_DISTANCE`]): where a real camera stands, so recognition's
-    /// window has the object's size.
-    pub distance_radii: Option<f64>,
-}
-
-impl Default for Recipe {
-    /// The default recipe.
-    fn default() -> Self {
-        Recipe {
-            imaging: false,
-            roll_search_deg: 0.0,
-            light_directions: 1,
-            smoothing: Smoothing::Off,
-            lowest_theta_deg: None,
-            distance_radii: None,
-        }
-    }
-}
-
-impl Recipe {
-    /// The recipe of the smoothed set a run with `smoothing = "auto"` holds
-    /// beside this one: views and frames smoothed, the confidence trained
-    /// for a worse camera (docs/accuracy.md, "The database set chosen per
-    /// frame").
-    pub fn smoothed_set(self) -> Recipe {
-        Recipe {
-            smoothing: Smoothing::Binomial,
-            imaging: true,
-            ..self
-        }
-    }
-
-    /// Refuses what cannot be trained, naming the option.
-    fn check(&self) -> Result<(), EvalError> {
-        let deg = self.roll_search_deg;
-        if !(deg.is_finite() && (0.0..=180.0).contains(&deg)) {
-            return Err(EvalError::Input(format!(
-                "--roll-search-deg {deg} must be a finite number of degrees in [0, 180]"
-            )));
-        }
-        if self.light_directions == 0 {
-            return Err(EvalError::Input(
-                "--light-directions 0: at least 1 (the training light's)".into(),
-            ));
-        }
-        if self.imaging && self.light_directions > 1 {
-            return Err(EvalError::Input(
-                "--confidence-imaging and --light-directions: one at a time".into(),
-            ));
-        }
-        if self.lowest_theta_deg.is_some_and(|t| t > 90) {
-            return Err(EvalError::Input(
-                "the lowest training elevation must be at most 90°".into(),
-            ));
-        }
-        if let Some(d) = self.distance_radii {
-            acch_capture::check_distance(d)?;
-        }
-        Ok(())
-    }
-
-    /// The training views: the paper's grid, or every 10° from the lowest
-    /// elevation.
-    fn views(&self) -> ViewSpec {
-        match self.lowest_theta_deg {
-            None => PAPER_GRID.parse().expect("the paper grid parses"),
-            Some(lowest) => ViewSpec::Grid {
-                thetas_deg: (lowest..=90).step_by(10).map(f64::from).collect(),
-                phi_step_deg: 10.0,
-            },
-        }
-    }
-
-    /// The file's suffix after the default one's stem ("" for the default).
-    fn suffix(&self) -> String {
-        let mut s = String::new();
-        if self.imaging {
-            s += "-imaging";
-        }
-        if self.roll_search_deg > 0.0 {
-            s += &format!("-roll{}", self.roll_search_deg);
-        }
-        if self.light_directions > 1 {
-            s += &format!("-lights{}", self.light_directions);
-        }
-        if self.smoothing != Smoothing::Off {
-            s += "-smoothed";
-        }
-        if let Some(t) = self.lowest_theta_deg {
-            s += &format!("-from{t}deg");
-        }
-        if let Some(d) = self.distance_radii {
-            s += &format!("-at{d:.1}r");
-        }
-        s
-    }
-
-    /// What the training message calls it ("" for the default).
-    fn what(&self) -> String {
-        let mut s = String::new();
-        if self.imaging {
-            s += "imaging-aware ";
-        }
-        if self.roll_search_deg > 0.0 {
-            s += "roll-searching ";
-        }
-        if self.light_directions > 1 {
-            s += "light-tolerant ";
-        }
-        if self.smoothing != Smoothing::Off {
-            s += "smoothing ";
-        }
-        s
-    }
-}
-
-/// The database of `object` trained with `recipe` and the file it is
-/// cached in: trained on first use and cached, so later runs start at once.
-pub fn cached_recipe_database(
-    object: &Arc<Object>,
-    dir: Option<PathBuf>,
-    recipe: Recipe,
-) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    recipe.check()?;
-    let default = cached_database_path(object, dir, false);
-    let stem = default.file_stem().unwrap_or_default().to_string_lossy();
-    let path = default.with_file_name(format!("{stem}{}.acchdb", recipe.suffix()));
-    let scenes = ConfidenceScenes {
-        roll_deg: recipe.roll_search_deg,
-        search_deg: recipe.roll_search_deg,
-        imaging: recipe.imaging,
-        light_turned: recipe.light_directions > 1,
-    };
-    let config = TrainConfig {
-        smoothing: recipe.smoothing,
-        ..TrainConfig::default()
-    };
-    let training = RenderedTraining {
-        views: recipe.views(),
-        distance: recipe.distance_radii.unwrap_or(DEFAULT_DISTANCE),
-        scenes,
-        light_directions: recipe.light_directions,
-        ..RenderedTraining::default()
-    };
-    cached_with(object, path, &recipe.what(), &config, training)
-}
-
-/// The default database of a built-in object and the file it is cached
-/// in: trained on first use with the default recipe and cached, so later
-/// runs start at once.
-pub fn cached_database(
-    object: &Arc<Object>,
-    dir: Option<PathBuf>,
-) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    cached_recipe_database(object, dir, Recipe::default())
-}
-
-/// [`cached_database`], or with `imaging` the default recipe with the
-/// confidence network trained on imaged scenes too
-/// ([`ConfidenceScenes::imaging`]).
-pub fn cached_database_with(
-    object: &Arc<Object>,
-    dir: Option<PathBuf>,
-    imaging: bool,
-) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let recipe = Recipe {
-        imaging,
-        ..Recipe::default()
-    };
-    cached_recipe_database(object, dir, recipe)
-}
-
-/// The default recipe for `object` with its confidence network trained on
-/// scenes rolled within ±`search_deg` and estimated with that roll search
-/// (which runs then use): for a camera that rolls, or for objects seen off
-/// the optical axis (several objects on a table). Cached beside the
-/// default one.
-pub fn cached_roll_database(
-    object: &Arc<Object>,
-    dir: Option<PathBuf>,
-    search_deg: f64,
-) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let recipe = Recipe {
-        roll_search_deg: search_deg,
-        ..Recipe::default()
-    };
-    cached_recipe_database(object, dir, recipe)
-}
-
-/// The database of `object` cached at `path`, or trained by `training`
-/// on first use and cached there.
-fn cached_with(
-    object: &Arc<Object>,
-    path: PathBuf,
-    what: &str,
-    config: &TrainConfig,
-    training: RenderedTraining,
-) -> Result<(ViewDatabase, PathBuf), EvalError> {
-    let dir = path.parent().map(PathBuf::from).unwrap_or_default();
-    if path.exists() {
-        match ViewDatabase::load(&path) {
-            Ok(mut db)
-                if acch_pose::view_maps(&db).is_some()
-                    && !matches!(acch_shape::stored(&db), Ok(Some(_))) =>
-            {
-                eprintln!(
-                    "acch: adding the shape to the cached {what}database of '{}' (trained before \
-                     this build's shapes; {})",
-                    object.name(),
-                    path.display()
-                );
-                add_shape(&mut db, object, &training.symmetry);
-                db.save(&path)?;
-                return Ok((db, path));
-            }
-            Ok(db) if acch_pose::view_maps(&db).is_some() => return Ok((db, path)),
-            Ok(mut db) => {
-                eprintln!(
-                    "acch: adding the views' colour maps to the cached {what}database of '{}' \
-                     (trained before them; {})",
-                    object.name(),
-                    path.display()
-                );
-                add_view_maps(&mut db, object, &training)?;
-                db.save(&path)?;
-                return Ok((db, path));
-            }
-            Err(e) => tracing::warn!("retraining: the cached database is unusable: {e}"),
-        }
-    }
-    eprintln!(
-        "acch: training the {what}database of '{}' (first use; cached in {})",
-        object.name(),
-        path.display()
-    );
-    let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
-    let (db, choice) = train_object(object, config, &training, confidence)?;
-    if let Some(c) = choice {
-        eprintln!("acch: {c}");
-    }
-    std::fs::create_dir_all(&dir).map_err(|source| EvalError::Io {
-        path: dir.clone(),
-        source,
-    })?;
-    db.save(&path)?;
-    Ok((db, path))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn each_recipe_has_a_file_of_its_own_and_the_old_names_stay() {
-        let object = Object::builtin("can").unwrap();
-        let default = cached_database_path(&object, Some("/c".into()), false);
-        let stem = default.file_stem().unwrap().to_string_lossy().into_owned();
-        let name = |r: Recipe| format!("{stem}{}.acchdb", r.suffix());
-        let r = Recipe::default();
-        assert_eq!(name(r), default.file_name().unwrap().to_string_lossy());
-        let imaging = Recipe { imaging: true, ..r };
-        assert_eq!(
-            name(imaging),
-            cached_database_path(&object, Some("/c".into()), true)
-                .file_name()
-                .unwrap()
-                .to_string_lossy()
-        );
-        let roll = Recipe {
-            roll_search_deg: 45.0,
-            ..r
-        };
-        assert_eq!(name(roll), format!("{stem}-roll45.acchdb"));
-        let both = Recipe {
-            light_directions: 8,
-            ..roll
-        };
-        assert_eq!(name(both), format!("{stem}-roll45-lights8.acchdb"));
-        assert!(both.check().is_ok());
-        for bad in [
-            Recipe {
-                light_directions: 0,
-                ..r
-            },
-            Recipe {
-                light_directions: 8,
-                ..imaging
-            },
-            Recipe {
-                roll_search_deg: f64::NAN,
-                ..r
-            },
-        ] {
-            assert!(matches!(bad.check(), Err(EvalError::Input(_))), "{bad:?}");
-        }
-    }
 
     #[test]
     fn validation_training_and_test_seeds_never_meet() {
