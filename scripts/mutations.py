@@ -39,6 +39,16 @@ MUTATIONS = [
      TEST + " --test mesh_formats"),
     ("shape-accepted-under-threshold", "pipeline/src/stages/confidence.rs",
      "v.shape_clear() && !v.under_threshold()", "v.shape_clear()", TEST + " --lib shape_chose"),
+    ("histograms-bias-azimuth", "stages/pose/src/lib.rs",
+     "            phi_deg: phi_deg.rem_euclid(360.0),\n            best_view: best,",
+     "            phi_deg: (phi_deg + 8.0).rem_euclid(360.0),\n            best_view: best,",
+     TEST + " --test mesh_formats the_duck_as_glb"),
+    ("capture-loses-every-other-frame", "pipeline/src/node.rs",
+     "        tracing::trace!(\"frame {i}: source took {taken_ns} ns\");",
+     "        tracing::trace!(\"frame {i}: source took {taken_ns} ns\");\n"
+     "        if header.envelope.frame.sequence % 2 == 1 {\n"
+     "            let _ = recycle_tx.send(pixels);\n            i += 1;\n            continue;\n        }",
+     TEST + " --test cpu_latency"),
     ("gstreamer-drops-uncounted", "pipeline/src/gst.rs",
      "            self.counters.dropped += missed.saturating_sub(1);", "",
      TEST + " --test gst_source a_live_camera"),
