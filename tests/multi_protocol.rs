@@ -50,12 +50,21 @@ fn two_known_objects_are_found_and_told_apart() {
         let num = |i: usize| v[i].parse::<f64>().unwrap_or(f64::NAN);
         if v[detected] == "1" {
             detections += 1;
-            assert!(num(margin) >= 1.0, "{line}");
+            // Found from recognition's floor, a fraction of the threshold.
+            assert!(
+                num(margin) >= acch_recognition::MIN_FOUND_MARGIN as f64 - 5e-4,
+                "{line}"
+            );
         } else {
             assert!(v[margin].is_empty(), "{line}");
         }
         if v[accepted] == "1" {
             accepts += 1;
+            // Never accepted under the threshold itself.
+            assert!(
+                num(margin) >= acch_confidence::MIN_ACCEPTED_DETECTION_MARGIN as f64 - 5e-4,
+                "{line}"
+            );
             assert!((0.0..=1.0).contains(&num(confidence)), "{line}");
             assert!(
                 num(rival) <= acch_confidence::MAX_RIVAL_RATIO as f64,
