@@ -126,6 +126,10 @@ pub struct LineScratch {
     fg: Vec<u32>,
     bg: Vec<u32>,
     touched: Vec<u16>,
+    /// Each bin's object probability by the counts; 0.5 (no say) for a
+    /// bin not counted. Computed once per counted bin rather than once
+    /// per sample.
+    object: Vec<f32>,
     energies: Vec<f32>,
 }
 
@@ -146,10 +150,12 @@ impl LineScratch {
         if self.fg.len() != BINS {
             self.fg = vec![0; BINS];
             self.bg = vec![0; BINS];
+            self.object = vec![0.5; BINS];
         }
         for &b in &self.touched {
             self.fg[b as usize] = 0;
             self.bg[b as usize] = 0;
+            self.object[b as usize] = 0.5;
         }
         self.touched.clear();
         let per = 2 * length + 1;
@@ -180,6 +186,13 @@ impl LineScratch {
     fn posteriors(&mut self, totals: (u32, u32), region: Option<(&Region, f32)>, length: usize) {
         let floor = 0.5 / BINS as f32;
         let (nf, nb) = (totals.0 as f32, totals.1 as f32);
+        // A bin not counted has f = g = floor: probability 0.5, as the
+        // table holds for it.
+        for &b in &self.touched {
+            let f = self.fg[b as usize] as f32 / nf + floor;
+            let g = self.bg[b as usize] as f32 / nb + floor;
+            self.object[b as usize] = f / (f + g);
+        }
         let per = 2 * length + 1;
         self.post.clear();
         for (li, line) in self.samples.chunks(per).enumerate() {
@@ -188,9 +201,7 @@ impl LineScratch {
                 let mut q = if b == NONE {
                     0.5
                 } else {
-                    let f = self.fg[b as usize] as f32 / nf + floor;
-                    let g = self.bg[b as usize] as f32 / nb + floor;
-                    f / (f + g)
+                    self.object[b as usize]
                 };
                 if let Some((region, weight)) = region {
                     let s = i as f64 - length as f64;
