@@ -49,8 +49,18 @@ LABEL_COLUMNS = ["file", "theta_deg", "phi_deg", "mask", "roll_deg",
                  "bbox_x", "bbox_y", "bbox_w", "bbox_h"]
 
 
-def fail(msg):
-    sys.exit(f"line2d: error: {msg}")
+def fail(msg, prog="line2d"):
+    sys.exit(f"{prog}: error: {msg}")
+
+
+def write_json(path, doc, prog="line2d"):
+    """DOC to PATH as indented JSON; an error names the file."""
+    try:
+        with open(path, "w") as f:
+            json.dump(doc, f, indent=1)
+            f.write("\n")
+    except OSError as e:
+        fail(f"{path}: cannot write ({e.strerror})", prog)
 
 
 # ---------------------------------------------------------------- input
@@ -440,12 +450,7 @@ def main(argv=None):
             "train": train_info,
             "tests": results,
         }
-        try:
-            with open(a.json, "w") as f:
-                json.dump(doc, f, indent=1)
-                f.write("\n")
-        except OSError as e:
-            fail(f"{a.json}: cannot write ({e.strerror})")
+        write_json(a.json, doc)
 
 
 if __name__ == "__main__":

@@ -55,7 +55,7 @@ HEIGHT_MULTIPLE = 80
 
 
 def fail(msg):
-    sys.exit(f"line2d_bop: error: {msg}")
+    line2d.fail(msg, "line2d_bop")
 
 
 # ---------------------------------------------------------------- input
@@ -603,12 +603,7 @@ def main(argv=None):
           f"({pr(acch_m['accepted_rate'])}), wrong among accepted {acch_m['wrong_among_accepted']}; "
           f"{doc['timing']['match_s_per_instance_mean']} s/instance, total {total_s:.0f} s")
     if a.out:
-        try:
-            with open(a.out, "w") as f:
-                json.dump(doc, f, indent=1)
-                f.write("\n")
-        except OSError as e:
-            fail(f"{a.out}: cannot write ({e.strerror})")
+        line2d.write_json(a.out, doc, "line2d_bop")
 
 
 if __name__ == "__main__":
