@@ -3,13 +3,15 @@
 //! --in-process`, `acch estimate` and the benchmark's compute floor run
 //! this, on the very stage values a stage process runs.
 
+use crate::config::StageSettings;
 use crate::frame::FrameHeader;
 use crate::observe::{Observe, ObserveError};
-use crate::source::{Source, SourceError};
+use crate::source::Source;
+use crate::source_error::SourceError;
 use crate::stage::{Stage, StageCounters, step};
 use crate::stages::{
     BuildError, Posed, Recognised, RecognitionPayload, RegionPayload, ResponsePayload, Seeded,
-    Segmented, StageSettings, Stages,
+    Segmented, Stages,
 };
 use crate::wire::{Hop, StageId};
 use acch_core::ViewDatabase;
@@ -95,7 +97,7 @@ impl Chain {
 
     /// Recognition alone on frame `frame`: the window, before the later
     /// stages see it (several objects' windows are compared first, see
-    /// [`crate::multi`]). [`finish`](Self::finish) goes on from here.
+    /// `multi`). [`finish`](Self::finish) goes on from here.
     pub fn recognise(&mut self, frame: &FrameHeader, rgb: &[u8]) -> Recognised {
         let s = &mut self.stages.recognition;
         step(
@@ -111,7 +113,7 @@ impl Chain {
 
     /// [`recognise`](Self::recognise) on a frame whose indices under the
     /// database's palette `quantise` writes (through a joint palette
-    /// shared with other objects' chains, [`crate::multi`]): recognition
+    /// shared with other objects' chains, `multi`): recognition
     /// quantises the frame itself only under another light.
     pub fn recognise_quantised(
         &mut self,

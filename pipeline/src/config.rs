@@ -1,13 +1,17 @@
 //! The pipeline's configuration (`pipeline.toml`): every process of a run
-//! reads the same file, every key is optional.
+//! reads the same file, every key is optional. The settings made from it
+//! live here too: [`StageSettings`] (what every stage is built with) and
+//! [`Ros2Config`] (`[ros2]`). This module imports none of the stages,
+//! sinks or ROS 2 code that read them.
 
 use crate::source::{CameraFile, SourceSpec, SyntheticCamera, SyntheticGroup};
-use crate::stages::StageSettings;
+use crate::source_error::SourceError;
 use acch_capture::calibration::Calibration;
 use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory};
 use acch_core::ViewDatabase;
 use acch_ipc::sched::{self, Placement, StageCpus};
 use acch_ipc::{Ipc, ZenohConfig};
+use acch_ros2::names;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -176,7 +180,7 @@ pub struct PipelineConfig {
     /// 2 topics and every frame, for `ros2 bag play`).
     pub record_format: String,
     /// ROS 2 topics over zenoh, the rmw_zenoh way (no ROS installed).
-    pub ros2: crate::ros2::Ros2Config,
+    pub ros2: Ros2Config,
     /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
     /// the normal scheduler. Needs CAP_SYS_NICE (or an rtprio limit).
     pub realtime_priority: u8,
@@ -248,7 +252,7 @@ pub enum ConfigError {
         source_name: String,
         /// Why its size is unknown.
         #[source]
-        source: crate::source::SourceError,
+        source: SourceError,
     },
 }
 
@@ -308,13 +312,193 @@ impl Default for PipelineConfig {
     }
 }
 
+/// What every stage is built with besides the database.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageSettings {
+    /// Frame width, pixels.
+    pub width: u32,
+    /// Frame height, pixels.
+    pub height: u32,
+    /// Known camera distance to the object centre, metres: the scale
+    /// follows from it; `None` reads it off the segmented region.
+    pub distance_m: Option<f64>,
+    /// Run a database that has no confidence network: every estimate is
+    /// reported as unrated and none is accepted. Without it such a
+    /// database is refused.
+    pub unrated: bool,
+    /// The largest roll of the camera about its optical axis the pose
+    /// stage searches, degrees either way (0: none; the image's up is the
+    /// training views' up).
+    pub roll_search_deg: f32,
+    /// Lights (exposures) recognition tries in a frame whose object is
+    /// weak or lost under the light in use ([`acch_recognition::LightSearch`]):
+    /// 0 never leaves the training light; `usize::MAX` tries them all.
+    pub light_search: usize,
+    /// Search, fit and verify the object's shape when the database holds
+    /// it (the default). Off, the colour rules alone judge, as in the
+    /// paper: for printed objects that touch or hide each other, whose
+    /// regions the shape cannot explain (docs/limitations.md).
+    pub verify_shape: bool,
+}
+
+impl StageSettings {
+    /// The apparent scale of the object at the known distance, relative to
+    /// the database's training distance.
+    pub fn scale(&self, db: &ViewDatabase) -> Option<f32> {
+        self.distance_m.map(|d| db.train_distance_m / d as f32)
+    }
+}
+
+/// `[ros2]` of the pipeline's configuration.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Ros2Config {
+    /// Publish on ROS 2 topics (`acch run --ros2`).
+    pub enabled: bool,
+    /// `ROS_DOMAIN_ID` of the ROS 2 peers.
+    pub domain_id: u32,
+    /// The node's namespace (`/` or `/robot1`): the topics go under it.
+    pub namespace: String,
+    /// The node's name, as `ros2 node list` shows it.
+    pub node: String,
+    /// `jazzy` (type hashes in the keys; also Kilted and Rolling) or
+    /// `humble` (no type hashes).
+    pub distro: String,
+    /// The rmw_zenoh attachment layout: `current` (Jazzy 0.2.4 and later,
+    /// Kilted, Rolling, Humble 0.1.2 and later) or `legacy` (Jazzy 0.2.0 to
+    /// 0.2.3, Humble 0.1.0 and 0.1.1).
+    pub attachment: String,
+    /// The camera's optical frame: `header.frame_id` of every message.
+    pub frame_id: String,
+    /// Publish each object's fused pose on `/tf` as `<frame_id> ->
+    /// acch_<object>` (tf2_msgs/TFMessage).
+    pub tf: bool,
+    /// Publish every Nth frame on `acch/image` (sensor_msgs/Image, rgb8)
+    /// from the recorder's side of the run; 0 = never.
+    pub image_every: u32,
+    /// A topic with the arm's camera pose in its base frame (`world_from_
+    /// camera`, the camera's optical frame in metres): seeding fuses over
+    /// its motion. Unset = the source's own arm pose, if any.
+    pub arm_topic: Option<String>,
+    /// Its type: `pose_stamped` (geometry_msgs/PoseStamped) or
+    /// `transform_stamped` (geometry_msgs/TransformStamped).
+    pub arm_type: String,
+    /// How old the arm's last pose may be at a frame's capture before the
+    /// frame counts as without one (its motion unknown), ms.
+    pub arm_max_age_ms: u32,
+}
+
+impl Default for Ros2Config {
+    fn default() -> Self {
+        Ros2Config {
+            enabled: false,
+            domain_id: 0,
+            namespace: "/".into(),
+            node: "acch".into(),
+            distro: "jazzy".into(),
+            attachment: "current".into(),
+            frame_id: "camera_optical_frame".into(),
+            tf: true,
+            image_every: 0,
+            arm_topic: None,
+            arm_type: "pose_stamped".into(),
+            arm_max_age_ms: 200,
+        }
+    }
+}
+
+impl Ros2Config {
+    /// Checks every key, naming the bad one.
+    pub fn validate(&self, object: &str) -> Result<(), ConfigError> {
+        let bad = |key, value: &str, why| ConfigError::Invalid {
+            key,
+            value: value.to_owned(),
+            why,
+        };
+        if self.domain_id > 232 {
+            return Err(bad(
+                "ros2.domain_id",
+                &self.domain_id.to_string(),
+                "must be 0..=232 (ROS_DOMAIN_ID)",
+            ));
+        }
+        names::validate_namespace(&self.namespace).map_err(|_| {
+            bad(
+                "ros2.namespace",
+                &self.namespace,
+                "must be / or /name/name (letters, digits, _; not starting with a digit)",
+            )
+        })?;
+        names::validate_node_name(&self.node).map_err(|_| {
+            bad(
+                "ros2.node",
+                &self.node,
+                "must be letters, digits and _, not starting with a digit",
+            )
+        })?;
+        if !valid_frame_id(&self.frame_id) {
+            return Err(bad(
+                "ros2.frame_id",
+                &self.frame_id,
+                "must be a non-empty ASCII tf frame name without spaces or a leading /",
+            ));
+        }
+        if !matches!(self.distro.as_str(), "jazzy" | "humble") {
+            return Err(bad("ros2.distro", &self.distro, "must be jazzy or humble"));
+        }
+        if !matches!(self.attachment.as_str(), "current" | "legacy") {
+            return Err(bad(
+                "ros2.attachment",
+                &self.attachment,
+                "must be current or legacy",
+            ));
+        }
+        if !matches!(self.arm_type.as_str(), "pose_stamped" | "transform_stamped") {
+            return Err(bad(
+                "ros2.arm_type",
+                &self.arm_type,
+                "must be pose_stamped or transform_stamped",
+            ));
+        }
+        if let Some(t) = &self.arm_topic {
+            names::validate_topic_name(t).map_err(|_| {
+                bad(
+                    "ros2.arm_topic",
+                    t,
+                    "must be a ROS 2 topic name such as /arm/camera_pose",
+                )
+            })?;
+        }
+        if self.enabled {
+            // The object's name goes into topic names and a tf frame.
+            names::validate_node_name(object).map_err(|_| {
+                bad(
+                    "object",
+                    object,
+                    "must be letters, digits and _ to name ROS 2 topics",
+                )
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// A tf frame name: ASCII, no spaces, no leading slash (tf2 refuses one).
+fn valid_frame_id(id: &str) -> bool {
+    !id.is_empty()
+        && !id.starts_with('/')
+        && id
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '/' | '-' | '.'))
+}
+
 /// A run's smoothing: one for every frame, or chosen per frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SmoothingChoice {
     /// Every frame through databases of this smoothing.
     Fixed(acch_core::Smoothing),
     /// Recognition chooses per frame between the sharp databases and the
-    /// smoothed ones ([`crate::stages::BySet`]).
+    /// smoothed ones (`stages::BySet`).
     ByFrame,
 }
 
@@ -794,7 +978,7 @@ impl PipelineConfig {
                 .check_size(w, h)
                 .map_err(|why| ConfigError::Source {
                     source_name: self.source.clone(),
-                    source: crate::source::SourceError::CalibrationSize { path: c.path, why },
+                    source: SourceError::CalibrationSize { path: c.path, why },
                 })?;
         }
         Ok(())
@@ -846,18 +1030,6 @@ impl PipelineConfig {
         };
         sched::pin_to(&cpus)?;
         Ok(Some(cpus))
-    }
-
-    /// The observer processes this run starts (viewer, recorder).
-    pub fn observers(&self) -> Vec<crate::Observer> {
-        let mut v = Vec::new();
-        if self.rerun.is_some() {
-            v.push(crate::Observer::Viz);
-        }
-        if self.record.is_some() {
-            v.push(crate::Observer::Record);
-        }
-        v
     }
 
     /// Reads the configured database.

@@ -6,7 +6,7 @@
 //! that fails mid-stream (a camera unplugged) is reopened with backoff,
 //! the frames lost meanwhile counted.
 
-use crate::source::{CameraCounters, SourceError};
+use crate::source_error::{CameraCounters, SourceError};
 use gstreamer as gst;
 use gstreamer::prelude::*;
 use gstreamer_app as gst_app;

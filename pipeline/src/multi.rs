@@ -10,8 +10,9 @@
 //! [`JointPalette`] of their palettes.
 
 use crate::chain::Chain;
+use crate::config::StageSettings;
 use crate::frame::FrameHeader;
-use crate::stages::{BuildError, Recognised, Seeded, StageSettings, Window};
+use crate::stages::{BuildError, Recognised, Seeded, Window};
 use crate::wire::{Outcome, PixelRect};
 use acch_core::{JointPalette, ViewDatabase};
 use rayon::prelude::*;

@@ -8,7 +8,8 @@ use crate::config::{ConfigError, Pace, PipelineConfig};
 use crate::copy::{self, CopyError};
 use crate::frame::FrameHeader;
 use crate::observe::ObserveError;
-use crate::source::{Pixels, Produced, Source, SourceError};
+use crate::source::{Pixels, Produced, Source};
+use crate::source_error::{CameraCounters, SourceError};
 use crate::stage::{Stage, StageCounters, step};
 use crate::stages::{BuildError, Seeded};
 use crate::streams;
@@ -146,7 +147,7 @@ pub struct CaptureCounters {
     /// Source frames skipped for having another size than the stream.
     pub skipped_size: u64,
     /// What a camera source lost (all zero for the others).
-    pub camera: crate::source::CameraCounters,
+    pub camera: CameraCounters,
 }
 
 /// Writes counters `value` of process `name` where the launcher reads them.
@@ -489,7 +490,7 @@ fn produce(
     realtime: bool,
     out: &std::sync::mpsc::SyncSender<Produced>,
     recycle: &std::sync::mpsc::Receiver<Pixels>,
-) -> Result<(u64, crate::source::CameraCounters), SourceError> {
+) -> Result<(u64, CameraCounters), SourceError> {
     if realtime {
         // Rendering is the camera's work, not the real-time path.
         if let Err(e) = acch_ipc::sched::set_normal() {

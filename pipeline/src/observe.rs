@@ -6,6 +6,7 @@
 //! when it falls behind, iceoryx2 drops the oldest samples queued for it
 //! and the gaps in sequence numbers are counted ([`Streams`]).
 
+use crate::config::PipelineConfig;
 use crate::frame::FrameHeader;
 use crate::stages::{Posed, Seeded, Segmented};
 use crate::streams;
@@ -27,7 +28,7 @@ pub enum ObserveError {
     Ipc(#[from] acch_ipc::IpcError),
     /// Publishing on ROS 2 or writing a rosbag2 bag failed.
     #[error(transparent)]
-    Ros2(#[from] crate::ros2::Ros2OutError),
+    Ros2(#[from] Ros2OutError),
     /// A result could not be written as JSON.
     #[error("writing a result as JSON")]
     Json(#[from] serde_json::Error),
@@ -40,6 +41,28 @@ pub enum ObserveError {
         #[source]
         source: std::io::Error,
     },
+}
+
+/// Why the ROS 2 side could not start or publish.
+#[derive(Debug, thiserror::Error)]
+pub enum Ros2OutError {
+    /// Declaring the node, a publisher or a subscriber failed.
+    #[error("ROS 2")]
+    Ros2(#[from] acch_ros2::node::Ros2Error),
+    /// The bag could not be written.
+    #[error("rosbag2 recording")]
+    Bag(#[from] acch_ros2::BagError),
+    /// A message could not be encoded.
+    #[error("encoding a ROS 2 message")]
+    Cdr(#[from] acch_ros2::CdrError),
+    /// The arm's pose topic needs peers to connect to.
+    #[error(
+        "ros2.arm_topic needs zenoh.connect: the endpoint of the ROS 2 router or the arm's publisher"
+    )]
+    NoPeers,
+    /// Opening the arm's session failed.
+    #[error(transparent)]
+    Zenoh(#[from] acch_ipc::ZenohError),
 }
 
 /// What an observer does with each sample, stream by stream. Every method
@@ -216,6 +239,20 @@ impl Observer {
     /// The event id it announces readiness with (after the stages' ids).
     pub fn ready_id(self) -> usize {
         crate::wire::STAGES + self as usize
+    }
+}
+
+impl PipelineConfig {
+    /// The observer processes this run starts (viewer, recorder).
+    pub fn observers(&self) -> Vec<Observer> {
+        let mut v = Vec::new();
+        if self.rerun.is_some() {
+            v.push(Observer::Viz);
+        }
+        if self.record.is_some() {
+            v.push(Observer::Record);
+        }
+        v
     }
 }
 

@@ -4,10 +4,13 @@
 //! motion seeding fuses over ([`ArmFeed`]), and the same messages into a
 //! rosbag2 bag ([`Ros2Bag`]). The wire formats live in [`acch_ros2`]; this
 //! module says which messages a frame's result makes ([`Ros2Messages`]).
+//! Its configuration, [`Ros2Config`], is read and checked with the rest in
+//! `config`; why it fails, [`Ros2OutError`], sits beside the observers'
+//! error in `observe`.
 
-use crate::config::ConfigError;
+use crate::config::Ros2Config;
 use crate::frame::FrameHeader;
-use crate::observe::{Observe, ObserveError};
+use crate::observe::{Observe, ObserveError, Ros2OutError};
 use crate::stages::Seeded;
 use crate::wire::{ArmPose, Hop, Intrinsics, Maybe};
 use acch_capture::calibration::DistortionModel;
@@ -19,67 +22,8 @@ use acch_ros2::{
     AttachmentFormat, BagWriter, Distro, Message, Node, NodeConfig, Qos, TopicId, names,
 };
 use glam::{DAffine3, DMat3, DQuat, DVec3};
-use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-
-/// `[ros2]` of the pipeline's configuration.
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct Ros2Config {
-    /// Publish on ROS 2 topics (`acch run --ros2`).
-    pub enabled: bool,
-    /// `ROS_DOMAIN_ID` of the ROS 2 peers.
-    pub domain_id: u32,
-    /// The node's namespace (`/` or `/robot1`): the topics go under it.
-    pub namespace: String,
-    /// The node's name, as `ros2 node list` shows it.
-    pub node: String,
-    /// `jazzy` (type hashes in the keys; also Kilted and Rolling) or
-    /// `humble` (no type hashes).
-    pub distro: String,
-    /// The rmw_zenoh attachment layout: `current` (Jazzy 0.2.4 and later,
-    /// Kilted, Rolling, Humble 0.1.2 and later) or `legacy` (Jazzy 0.2.0 to
-    /// 0.2.3, Humble 0.1.0 and 0.1.1).
-    pub attachment: String,
-    /// The camera's optical frame: `header.frame_id` of every message.
-    pub frame_id: String,
-    /// Publish each object's fused pose on `/tf` as `<frame_id> ->
-    /// acch_<object>` (tf2_msgs/TFMessage).
-    pub tf: bool,
-    /// Publish every Nth frame on `acch/image` (sensor_msgs/Image, rgb8)
-    /// from the recorder's side of the run; 0 = never.
-    pub image_every: u32,
-    /// A topic with the arm's camera pose in its base frame (`world_from_
-    /// camera`, the camera's optical frame in metres): seeding fuses over
-    /// its motion. Unset = the source's own arm pose, if any.
-    pub arm_topic: Option<String>,
-    /// Its type: `pose_stamped` (geometry_msgs/PoseStamped) or
-    /// `transform_stamped` (geometry_msgs/TransformStamped).
-    pub arm_type: String,
-    /// How old the arm's last pose may be at a frame's capture before the
-    /// frame counts as without one (its motion unknown), ms.
-    pub arm_max_age_ms: u32,
-}
-
-impl Default for Ros2Config {
-    fn default() -> Self {
-        Ros2Config {
-            enabled: false,
-            domain_id: 0,
-            namespace: "/".into(),
-            node: "acch".into(),
-            distro: "jazzy".into(),
-            attachment: "current".into(),
-            frame_id: "camera_optical_frame".into(),
-            tf: true,
-            image_every: 0,
-            arm_topic: None,
-            arm_type: "pose_stamped".into(),
-            arm_max_age_ms: 200,
-        }
-    }
-}
 
 /// The QoS of every acch topic: RELIABLE, VOLATILE, KEEP_LAST 10 (rclcpp's
 /// publisher default, so a default subscriber matches).
@@ -96,80 +40,6 @@ const TF_QOS: Qos = Qos {
 };
 
 impl Ros2Config {
-    /// Checks every key, naming the bad one.
-    pub fn validate(&self, object: &str) -> Result<(), ConfigError> {
-        let bad = |key, value: &str, why| ConfigError::Invalid {
-            key,
-            value: value.to_owned(),
-            why,
-        };
-        if self.domain_id > 232 {
-            return Err(bad(
-                "ros2.domain_id",
-                &self.domain_id.to_string(),
-                "must be 0..=232 (ROS_DOMAIN_ID)",
-            ));
-        }
-        names::validate_namespace(&self.namespace).map_err(|_| {
-            bad(
-                "ros2.namespace",
-                &self.namespace,
-                "must be / or /name/name (letters, digits, _; not starting with a digit)",
-            )
-        })?;
-        names::validate_node_name(&self.node).map_err(|_| {
-            bad(
-                "ros2.node",
-                &self.node,
-                "must be letters, digits and _, not starting with a digit",
-            )
-        })?;
-        if !valid_frame_id(&self.frame_id) {
-            return Err(bad(
-                "ros2.frame_id",
-                &self.frame_id,
-                "must be a non-empty ASCII tf frame name without spaces or a leading /",
-            ));
-        }
-        if !matches!(self.distro.as_str(), "jazzy" | "humble") {
-            return Err(bad("ros2.distro", &self.distro, "must be jazzy or humble"));
-        }
-        if !matches!(self.attachment.as_str(), "current" | "legacy") {
-            return Err(bad(
-                "ros2.attachment",
-                &self.attachment,
-                "must be current or legacy",
-            ));
-        }
-        if !matches!(self.arm_type.as_str(), "pose_stamped" | "transform_stamped") {
-            return Err(bad(
-                "ros2.arm_type",
-                &self.arm_type,
-                "must be pose_stamped or transform_stamped",
-            ));
-        }
-        if let Some(t) = &self.arm_topic {
-            names::validate_topic_name(t).map_err(|_| {
-                bad(
-                    "ros2.arm_topic",
-                    t,
-                    "must be a ROS 2 topic name such as /arm/camera_pose",
-                )
-            })?;
-        }
-        if self.enabled {
-            // The object's name goes into topic names and a tf frame.
-            names::validate_node_name(object).map_err(|_| {
-                bad(
-                    "object",
-                    object,
-                    "must be letters, digits and _ to name ROS 2 topics",
-                )
-            })?;
-        }
-        Ok(())
-    }
-
     /// The node of this configuration, named `name`.
     pub fn node_config(&self, name: &str) -> NodeConfig {
         NodeConfig {
@@ -193,15 +63,6 @@ impl Ros2Config {
     pub fn object_frame(object: &str) -> String {
         format!("acch_{object}")
     }
-}
-
-/// A tf frame name: ASCII, no spaces, no leading slash (tf2 refuses one).
-fn valid_frame_id(id: &str) -> bool {
-    !id.is_empty()
-        && !id.starts_with('/')
-        && id
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '/' | '-' | '.'))
 }
 
 /// The topics, relative to the node's namespace.
@@ -370,28 +231,6 @@ fn fill_camera_info(info: &mut CameraInfo, k: &Intrinsics, (width, height): (u32
     info.p = [
         k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
     ];
-}
-
-/// Why the ROS 2 side could not start or publish.
-#[derive(Debug, thiserror::Error)]
-pub enum Ros2OutError {
-    /// Declaring the node, a publisher or a subscriber failed.
-    #[error("ROS 2")]
-    Ros2(#[from] acch_ros2::node::Ros2Error),
-    /// The bag could not be written.
-    #[error("rosbag2 recording")]
-    Bag(#[from] acch_ros2::BagError),
-    /// A message could not be encoded.
-    #[error("encoding a ROS 2 message")]
-    Cdr(#[from] acch_ros2::CdrError),
-    /// The arm's pose topic needs peers to connect to.
-    #[error(
-        "ros2.arm_topic needs zenoh.connect: the endpoint of the ROS 2 router or the arm's publisher"
-    )]
-    NoPeers,
-    /// Opening the arm's session failed.
-    #[error(transparent)]
-    Zenoh(#[from] acch_ipc::ZenohError),
 }
 
 /// The ROS 2 publishers of one object's results, on the pipeline's zenoh

@@ -13,9 +13,10 @@ use crate::observers::{RunRecording, Viewing};
 use crate::source::Source;
 use crate::stages::{BuildError, Seeded};
 use crate::streams;
-use crate::summary::{Outcomes, Percentiles, ProcessUsage, Samples, StageLatency, self_usage};
+use crate::summary::{Outcomes, Percentiles, Samples, StageLatency};
 use crate::supervisor::{
-    Restart, RestartPolicy, RssSample, Spawn, SuperviseError, Supervisor, rss_trend,
+    ProcessUsage, Restart, RestartPolicy, RssSample, Spawn, SuperviseError, Supervisor, rss_trend,
+    self_usage, status_field,
 };
 use crate::wire::{Hop, STAGES, StageId};
 use acch_ipc::{IpcError, Wake, remove_stale_resources};
@@ -71,7 +72,7 @@ pub enum RunError {
     Observe(#[from] ObserveError),
     /// The source failed.
     #[error(transparent)]
-    Source(#[from] crate::source::SourceError),
+    Source(#[from] crate::source_error::SourceError),
     /// Streaming through the chain failed.
     #[error(transparent)]
     Stream(#[from] crate::chain::RunSourceError),
@@ -442,8 +443,7 @@ fn this_process(cpu0: f64, elapsed: f64) -> ProcessUsage {
         cpu_s: cpu1 - cpu0,
         cpu_pct: 100.0 * (cpu1 - cpu0) / elapsed.max(1e-9),
         peak_rss_kb,
-        cpus: crate::summary::status_field(std::process::id(), "Cpus_allowed_list:")
-            .unwrap_or_default(),
+        cpus: status_field(std::process::id(), "Cpus_allowed_list:").unwrap_or_default(),
     }
 }
 

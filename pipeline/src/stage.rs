@@ -4,9 +4,10 @@
 //! A stage is a value with its own buffers. It reads its upstream's header
 //! and payload (typed views defined beside the stage that wrote them) and
 //! writes its own payload into a buffer the executor lends it: a `Vec` in
-//! the in-process [`Chain`](crate::Chain), a shared-memory loan in a stage
-//! process ([`node`](crate::node)). What it returns becomes its part of the
-//! next header; a [`Fault`] is counted, never dropped.
+//! the in-process `Chain`, a shared-memory loan in a stage process
+//! (`node`). What it returns becomes its part of the next header; a
+//! [`Fault`] is counted, never dropped. The executors and the stages build
+//! on this module; it knows neither.
 
 use crate::wire::{Fault, Hop, StageId};
 use acch_ipc::{Header, now_ns};
@@ -58,7 +59,7 @@ pub trait Stage {
 
     /// Where in the frame its part found the object (recognition's
     /// window) and how clearly, for a run that chooses its database set
-    /// by how sharp the object is ([`crate::stages::BySet`]); None: this
+    /// by how sharp the object is (`stages::BySet`); None: this
     /// stage finds none. Only recognition says: the other stages keep this
     /// default.
     fn object_window(_part: &Self::Part) -> Option<ObjectWindow> {

@@ -245,39 +245,6 @@ impl Samples {
     }
 }
 
-/// CPU time and peak resident memory of one process over a run.
-#[derive(Serialize, Debug, Clone, PartialEq)]
-pub struct ProcessUsage {
-    /// Stage name (or "in-process").
-    pub stage: String,
-    /// CPU seconds (user + system) while frames streamed.
-    pub cpu_s: f64,
-    /// `cpu_s` over the streaming time, percent of one core.
-    pub cpu_pct: f64,
-    /// Peak resident set, kB (VmHWM / ru_maxrss).
-    pub peak_rss_kb: u64,
-    /// The CPUs it was allowed on (`Cpus_allowed_list`, e.g. "1" or "0-1").
-    pub cpus: String,
-}
-
-/// User + system CPU seconds and peak RSS (kB) of this process.
-pub fn self_usage() -> (f64, u64) {
-    // SAFETY: getrusage fills the struct we pass.
-    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
-    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut ru) };
-    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
-    (secs(ru.ru_utime) + secs(ru.ru_stime), ru.ru_maxrss as u64)
-}
-
-/// The value of line `key` of /proc/PID/status, trimmed.
-pub fn status_field(pid: u32, key: &str) -> Option<String> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status
-        .lines()
-        .find_map(|l| l.strip_prefix(key))
-        .map(|v| v.trim().to_owned())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,6 +3,8 @@
 //! child's memory and CPU, and stops them all (SIGINT, then SIGKILL after a
 //! grace period) however the run ends. What it spawns is the caller's
 //! ([`Spawn`]): `acch run` spawns `acch stage NAME`, the tests spawn shells.
+//! What a run reports of each process's CPU and memory ([`ProcessUsage`])
+//! is measured here too, for the in-process run as well ([`self_usage`]).
 
 use serde::Serialize;
 use std::os::unix::process::ExitStatusExt;
@@ -199,11 +201,44 @@ pub fn cpu_ticks(pid: u32) -> Option<u64> {
 
 /// A memory figure of `pid` in kB (`VmRSS:`, `VmHWM:`).
 pub fn status_kb(pid: u32, key: &str) -> Option<u64> {
-    crate::summary::status_field(pid, key)?
+    status_field(pid, key)?
         .split_whitespace()
         .next()?
         .parse()
         .ok()
+}
+
+/// CPU time and peak resident memory of one process over a run.
+#[derive(Serialize, Debug, Clone, PartialEq)]
+pub struct ProcessUsage {
+    /// Stage name (or "in-process").
+    pub stage: String,
+    /// CPU seconds (user + system) while frames streamed.
+    pub cpu_s: f64,
+    /// `cpu_s` over the streaming time, percent of one core.
+    pub cpu_pct: f64,
+    /// Peak resident set, kB (VmHWM / ru_maxrss).
+    pub peak_rss_kb: u64,
+    /// The CPUs it was allowed on (`Cpus_allowed_list`, e.g. "1" or "0-1").
+    pub cpus: String,
+}
+
+/// User + system CPU seconds and peak RSS (kB) of this process.
+pub fn self_usage() -> (f64, u64) {
+    // SAFETY: getrusage fills the struct we pass.
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut ru) };
+    let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
+    (secs(ru.ru_utime) + secs(ru.ru_stime), ru.ru_maxrss as u64)
+}
+
+/// The value of line `key` of /proc/PID/status, trimmed.
+pub fn status_field(pid: u32, key: &str) -> Option<String> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix(key))
+        .map(|v| v.trim().to_owned())
 }
 
 /// The children of a run; stopped on drop so nothing outlives the
@@ -292,7 +327,7 @@ impl<S: Spawn> Supervisor<S> {
     }
 
     /// CPU and peak memory of every child since the start.
-    pub fn usage(&self) -> Vec<crate::summary::ProcessUsage> {
+    pub fn usage(&self) -> Vec<ProcessUsage> {
         // SAFETY: sysconf has no preconditions.
         let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
         let elapsed = self.elapsed_s();
@@ -304,13 +339,12 @@ impl<S: Spawn> Supervisor<S> {
                     (Some(a), Some(b)) => b.saturating_sub(a) as f64 / hz,
                     _ => 0.0,
                 };
-                crate::summary::ProcessUsage {
+                ProcessUsage {
                     stage: p.name.into(),
                     cpu_s,
                     cpu_pct: 100.0 * cpu_s / elapsed.max(1e-9),
                     peak_rss_kb: status_kb(pid, "VmHWM:").unwrap_or(0),
-                    cpus: crate::summary::status_field(pid, "Cpus_allowed_list:")
-                        .unwrap_or_default(),
+                    cpus: status_field(pid, "Cpus_allowed_list:").unwrap_or_default(),
                 }
             })
             .collect()

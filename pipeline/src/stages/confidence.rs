@@ -25,8 +25,9 @@
 //! is explicitly unrated ([`StageSettings::unrated`]): then every estimate
 //! is marked [`Rating::Unrated`], and nothing is accepted.
 
+use super::BuildError;
 use super::pose::{Posed, ResponsePayload};
-use super::{BuildError, StageSettings};
+use crate::config::StageSettings;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, StageId};
 use acch_confidence::Model;

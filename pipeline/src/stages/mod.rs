@@ -20,6 +20,7 @@ pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window
 pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};
 pub use segmentation::{RegionPayload, Segmentation, Segmented};
 
+use crate::config::StageSettings;
 use acch_core::ViewDatabase;
 
 /// Lights recognition tries in a weak single image when the light search
@@ -30,43 +31,6 @@ use acch_core::ViewDatabase;
 /// of flat, exact colours it turns "not found" into wrong estimates the
 /// confidence network accepts (docs/accuracy.md).
 pub const SINGLE_IMAGE_LIGHT_SEARCH: usize = acch_recognition::CANDIDATES;
-
-/// What every stage is built with besides the database.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StageSettings {
-    /// Frame width, pixels.
-    pub width: u32,
-    /// Frame height, pixels.
-    pub height: u32,
-    /// Known camera distance to the object centre, metres: the scale
-    /// follows from it; `None` reads it off the segmented region.
-    pub distance_m: Option<f64>,
-    /// Run a database that has no confidence network: every estimate is
-    /// reported as unrated and none is accepted. Without it such a
-    /// database is refused.
-    pub unrated: bool,
-    /// The largest roll of the camera about its optical axis the pose
-    /// stage searches, degrees either way (0: none; the image's up is the
-    /// training views' up).
-    pub roll_search_deg: f32,
-    /// Lights (exposures) recognition tries in a frame whose object is
-    /// weak or lost under the light in use ([`acch_recognition::LightSearch`]):
-    /// 0 never leaves the training light; `usize::MAX` tries them all.
-    pub light_search: usize,
-    /// Search, fit and verify the object's shape when the database holds
-    /// it (the default). Off, the colour rules alone judge, as in the
-    /// paper: for printed objects that touch or hide each other, whose
-    /// regions the shape cannot explain (docs/limitations.md).
-    pub verify_shape: bool,
-}
-
-impl StageSettings {
-    /// The apparent scale of the object at the known distance, relative to
-    /// the database's training distance.
-    pub fn scale(&self, db: &ViewDatabase) -> Option<f32> {
-        self.distance_m.map(|d| db.train_distance_m / d as f32)
-    }
-}
 
 /// Why a stage could not be built.
 #[derive(Debug, thiserror::Error)]

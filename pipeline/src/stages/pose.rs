@@ -5,8 +5,9 @@
 //! Its payload ([`ResponsePayload`]) is the match-value response, one f32
 //! (native-endian) per database view in database order.
 
+use super::BuildError;
 use super::segmentation::{RegionPayload, Segmented};
-use super::{BuildError, StageSettings};
+use crate::config::StageSettings;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, Outcome, StageId};
 use acch_core::{IndexImage, Rect, ViewDatabase};

@@ -7,7 +7,8 @@
 //! the ring's sums), so later stages neither touch the pixels nor count
 //! them again.
 
-use super::{BuildError, StageSettings};
+use super::BuildError;
+use crate::config::StageSettings;
 use crate::frame::FrameHeader;
 use crate::stage::{ObjectWindow, Stage};
 use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, SmoothedFor, StageId};

@@ -3,8 +3,9 @@
 //! tracker; the seeds are fused over the arm's known motion into a pose
 //! that outlives rejected frames ([`acch_seeding::fusion`]).
 
+use super::BuildError;
 use super::confidence::{Rated, Rating};
-use super::{BuildError, StageSettings};
+use crate::config::StageSettings;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, Maybe, Outcome, StageId};
 use acch_core::ViewDatabase;

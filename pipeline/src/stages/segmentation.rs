@@ -5,8 +5,9 @@
 //! palette indices, each cropped to the mask's bounding box (the ROI, in
 //! the header), `roi.width * roi.height` bytes each, mask first.
 
+use super::BuildError;
 use super::recognition::{Recognised, RecognitionPayload, recognition_model};
-use super::{BuildError, StageSettings};
+use crate::config::StageSettings;
 use crate::stage::Stage;
 use crate::wire::{Envelope, Fault, Hop, Outcome, PixelRect, StageId};
 use acch_core::ViewDatabase;

@@ -35,6 +35,7 @@
 #![warn(missing_docs)]
 
 mod background;
+mod builtin;
 pub mod calibration;
 mod camera;
 mod effects;
@@ -54,6 +55,7 @@ mod trajectory;
 mod views;
 
 pub use background::{Background, TextureSet};
+pub use builtin::BUILTIN_OBJECTS;
 pub use calibration::{Calibration, Distortion, DistortionModel};
 pub use camera::{
     DEFAULT_DISTANCE, Intrinsics, ViewPose, check_distance, world_from_camera_rotation,
@@ -65,7 +67,7 @@ pub use multi::{
     MAX_SCENE_OBJECTS, MULTI_DISTANCE, MultiRendered, MultiRenderer, MultiScene, MultiSceneError,
     ObjectTruth, SceneLight, view_from,
 };
-pub use object::{BUILTIN_OBJECTS, FileFrame, ModelInfo, Object, UpAxis};
+pub use object::{FileFrame, ModelInfo, Object, UpAxis};
 pub use posed::{PosedRender, render_posed};
 pub use render::{
     BBox, GroundTruth, MAX_EXPOSURE_SAMPLES, Rendered, Renderer, SceneConfig, exposure_samples,

@@ -1,6 +1,7 @@
 //! Mesh files: the loaders of OBJ, PLY and glTF 2.0 / GLB meshes, one
-//! module per format, and the PLY writer. Every loader rotates the file's
-//! up axis onto +z and normalises the mesh with
+//! module per format, and the PLY writer, with the [`Object`] methods that
+//! call them ([`Object::load_mesh`], [`Object::write_ply`], ...). Every
+//! loader rotates the file's up axis onto +z and normalises the mesh with
 //! [`MeshBuilder::finish_normalised`](crate::object::MeshBuilder::finish_normalised),
 //! taking the file's coordinates as metres.
 
@@ -14,8 +15,66 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::CaptureError;
-use crate::object::{Object, UpAxis, Vertex};
+use crate::object::{Object, UpAxis, Vertex, check_size};
 use crate::texture::Texture;
+
+impl Object {
+    /// Loads a UV-mapped OBJ mesh whose MTL material has a diffuse texture
+    /// (`map_Kd`, resolved relative to the MTL file), assuming +y is up.
+    /// See [`Object::load_obj_with_up`].
+    pub fn load_obj(path: impl AsRef<Path>) -> Result<Object, CaptureError> {
+        Object::load_obj_with_up(path, UpAxis::default())
+    }
+
+    /// Loads a textured OBJ mesh, rotating `up` onto the world z axis and
+    /// normalising it to bounding radius 1. An OBJ file states no unit: its
+    /// coordinates are taken as metres (as glTF's are), so the real radius
+    /// is the file's bounding radius; [`Object::with_mesh_unit_m`] or
+    /// [`Object::with_radius_m`] say otherwise. Every mesh in the file needs
+    /// texture coordinates and a material with `map_Kd`; missing normals are
+    /// computed (smoothed across edges sharper than 60 degrees only).
+    pub fn load_obj_with_up(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
+        Ok(obj::load(path.as_ref(), up)?.with_file_up(up))
+    }
+
+    /// Loads a mesh file of any supported format, chosen by its extension
+    /// (case-insensitive): `.obj` (see [`Object::load_obj_with_up`]),
+    /// `.ply` or `.gltf` / `.glb` (glTF 2.0). The mesh is rotated so that
+    /// `up` becomes the world z axis and normalised to bounding radius 1.
+    ///
+    /// Colour: a PLY mesh shows its texture (`comment TextureFile`, with
+    /// per-vertex or per-face texture coordinates) if it has one, otherwise
+    /// its vertex colours; a glTF primitive shows its base colour (texture
+    /// times factor times `COLOR_0`). A mesh without any colour is an error.
+    ///
+    /// Units: the coordinates are taken as metres. That is glTF's unit (and
+    /// +y its up axis, the default [`UpAxis`]); OBJ and PLY files state no
+    /// unit. The BOP benchmark's PLY models are in millimetres: load them
+    /// with [`Object::with_mesh_unit_m`]`(0.001)`.
+    pub fn load_mesh(path: impl AsRef<Path>, up: UpAxis) -> Result<Object, CaptureError> {
+        load(path.as_ref(), up)
+    }
+
+    /// Writes the object as a binary little-endian PLY file whose
+    /// coordinates are in units of `unit_m` metres (0.001: millimetres, as
+    /// the BOP benchmark's models are): the object's normalised frame (z
+    /// up, bounding-box centre at the origin) times [`Object::radius_m`] /
+    /// `unit_m`, with vertex normals. A textured object gets texture
+    /// coordinates (`texture_u`, `texture_v`, v = 0 at the bottom of the
+    /// image) and one PNG atlas of all its textures next to the file
+    /// (`<stem>.png`, named by a `comment TextureFile` line); an object whose
+    /// textures are all single colours (`tricolor`, a vertex-coloured mesh)
+    /// gets vertex colours (`red`, `green`, `blue`) and no image.
+    ///
+    /// [`Object::load_mesh`] with [`UpAxis::PosZ`] and then
+    /// [`Object::with_mesh_unit_m`]`(unit_m)` reads the same object back.
+    /// An object with a real texture under varying vertex colours cannot be
+    /// written (a PLY file is coloured by one or the other).
+    pub fn write_ply(&self, path: impl AsRef<Path>, unit_m: f64) -> Result<(), CaptureError> {
+        check_size("the mesh unit", unit_m)?;
+        ply::write(self, path.as_ref(), unit_m)
+    }
+}
 
 /// The extensions [`load`] accepts, as its error message lists them.
 const ACCEPTED: &str = ".obj, .ply, .gltf, .glb";
