@@ -312,10 +312,8 @@ fn cached_with(
         path.display()
     );
     let confidence = Some((DEFAULT_CONFIDENCE_SCENES, ConfidenceInput::Auto));
-    let (db, choice) = train_object(object, config, &training, confidence)?;
-    if let Some(c) = choice {
-        eprintln!("acch: {c}");
-    }
+    // The confidence input chosen is logged where it is chosen.
+    let (db, _) = train_object(object, config, &training, confidence)?;
     std::fs::create_dir_all(&dir).map_err(|source| TrainingError::Io {
         path: dir.clone(),
         source,
