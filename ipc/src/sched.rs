@@ -212,6 +212,26 @@ impl std::str::FromStr for StageCpus {
     }
 }
 
+impl std::fmt::Display for StageCpus {
+    /// As [`FromStr`](std::str::FromStr) reads it: `auto`, `none` or the
+    /// list (`2,3`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StageCpus::Auto => f.write_str("auto"),
+            StageCpus::Free => f.write_str("none"),
+            StageCpus::List(cpus) => {
+                for (i, c) in cpus.iter().enumerate() {
+                    if i > 0 {
+                        f.write_str(",")?;
+                    }
+                    write!(f, "{c}")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
 impl StageCpus {
     /// The placement on a machine where `allowed` CPUs may be used; `None`
     /// when nothing is to be pinned. A list naming a CPU outside `allowed`
@@ -296,6 +316,12 @@ mod tests {
                 .unwrap_err()
                 .contains("CPU 5")
         );
+        // Written as read, the list sorted once.
+        for (text, shown) in [("auto", "auto"), ("none", "none"), (" 3, 2,3", "2,3")] {
+            let cpus: StageCpus = text.parse().unwrap();
+            assert_eq!(cpus.to_string(), shown);
+            assert_eq!(shown.parse::<StageCpus>(), Ok(cpus));
+        }
         for bad in ["", "x", "1,", "-1", "99999"] {
             assert!(bad.parse::<StageCpus>().is_err(), "{bad:?}");
         }

@@ -7,7 +7,7 @@
 use crate::source::{CameraFile, SourceSpec, SyntheticCamera, SyntheticGroup};
 use crate::source_error::SourceError;
 use acch_capture::calibration::Calibration;
-use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory};
+use acch_capture::{Background, DEFAULT_DISTANCE, Trajectory, UpAxis};
 use acch_core::ViewDatabase;
 use acch_ipc::sched::{self, Placement, StageCpus};
 use acch_ipc::{Ipc, ZenohConfig};
@@ -30,7 +30,8 @@ pub struct PipelineConfig {
     pub mesh: Option<PathBuf>,
     /// Which axis of `mesh` points up: +y (the OBJ and glTF convention),
     /// -y, +z, -z, +x or -x.
-    pub mesh_up: String,
+    #[serde(with = "by_name")]
+    pub mesh_up: UpAxis,
     /// The unit of `mesh`'s coordinates, metres (unset: metres).
     pub mesh_unit_m: Option<f64>,
     /// View database; the launcher fills in the cached default.
@@ -68,7 +69,8 @@ pub struct PipelineConfig {
     /// databases with the confidence trained for such a camera
     /// (`smoothed_db`), the rest through the sharp ones (`db`). Not for
     /// database files otherwise; `auto` not with several objects.
-    pub smoothing: String,
+    #[serde(with = "by_name")]
+    pub smoothing: SmoothingChoice,
     /// With `smoothing = "auto"`: the smoothed set's database, trained
     /// from `db`'s object (`acch train --smoothing binomial
     /// --confidence-imaging`); the launcher fills in the cached one.
@@ -88,8 +90,10 @@ pub struct PipelineConfig {
     /// plumb_bob / rational_polynomial distortion). Unset = the synthetic
     /// camera's intrinsics at the stream's size.
     pub camera_info: Option<PathBuf>,
-    /// Background of the simulated scene.
-    pub background: String,
+    /// Background of the simulated scene: plain, plain:R,G,B, A, B, C,
+    /// clutter or clutter-similar.
+    #[serde(with = "by_name")]
+    pub background: Background,
     /// Elevation band the simulated camera sweeps, degrees `[min, max]`
     /// (the default stays inside the paper grid's 45..90; a lower minimum
     /// takes the camera below the database, as a real arm's goes).
@@ -101,7 +105,8 @@ pub struct PipelineConfig {
     /// Pace of an `mcap:` replay: `recorded` (the recording's own frame
     /// times) or `free` (as fast as the pipeline takes them); `fps` does
     /// not apply to replays.
-    pub replay: String,
+    #[serde(with = "by_name")]
+    pub replay: Replay,
     /// Seed of the trajectory and the scene.
     pub seed: u64,
     /// The camera's distance to the object centre the arm reports, metres;
@@ -162,7 +167,8 @@ pub struct PipelineConfig {
     /// How frames reach recognition: `shm` (zero copy, the pipeline) or
     /// `copy` (the benchmark's baseline: capture writes every frame into a
     /// Unix socket, which recognition reads into its own buffer).
-    pub transport: String,
+    #[serde(with = "by_name")]
+    pub transport: Transport,
     /// Run a database without a confidence network: estimates are
     /// reported as unrated, none is accepted and no seed is published.
     pub unrated: bool,
@@ -178,7 +184,8 @@ pub struct PipelineConfig {
     /// and seeds as Foxglove schemas and JSON, replayable with
     /// `--source mcap:FILE`) or `ros2` (a rosbag2 bag directory of the ROS
     /// 2 topics and every frame, for `ros2 bag play`).
-    pub record_format: String,
+    #[serde(with = "by_name")]
+    pub record_format: RecordFormat,
     /// ROS 2 topics over zenoh, the rmw_zenoh way (no ROS installed).
     pub ros2: Ros2Config,
     /// SCHED_FIFO priority of every process of the run (1..=90), or 0 for
@@ -192,7 +199,8 @@ pub struct PipelineConfig {
     /// are two or more; capture, the observers and the launcher keep the
     /// others), `none` (the scheduler decides) or a list such as `1` or
     /// `2,3`. Sharing one CPU turns every hop into a local context switch.
-    pub stage_cpus: String,
+    #[serde(with = "by_name")]
+    pub stage_cpus: StageCpus,
     /// Sequence number of the first frame capture sends: 0, or where a
     /// capture restarted by the launcher continues the run.
     pub first_frame: u64,
@@ -211,8 +219,14 @@ pub enum ConfigError {
         #[source]
         source: std::io::Error,
     },
-    /// Not valid TOML, or an unknown key or a value of the wrong type.
-    #[error("not a valid pipeline configuration")]
+    /// Not valid TOML, an unknown key, or a value of the wrong type or
+    /// outside its key's closed choice (`transport = "udp"`). TOML's error
+    /// points at the line and says what is wrong; ours names the key of a
+    /// refused value.
+    #[error(
+        "not a valid pipeline configuration{}",
+        toml_key(.0).map(|k| format!(" (key `{k}`)")).unwrap_or_default()
+    )]
     Toml(#[source] toml::de::Error),
     /// A value out of range.
     #[error("{key} = {value}: {why}")]
@@ -239,8 +253,10 @@ pub enum ConfigError {
     /// The smoothed database could not be read.
     #[error("the smoothed view database (smoothed_db = ...)")]
     SmoothedDatabase(#[source] acch_core::DbError),
-    /// The simulated scene's object is unknown.
-    #[error("object = {0}")]
+    /// The simulated scene's object is unknown, or its mesh cannot be read
+    /// or sized (the source says why; not repeated here, or a printed
+    /// chain would say it twice).
+    #[error("the simulated scene's object")]
     Object(#[source] acch_capture::CaptureError),
     /// The camera's calibration file cannot be used.
     #[error("camera_info")]
@@ -269,13 +285,13 @@ impl Default for PipelineConfig {
             object_threads: 0,
             cache_dir: None,
             light_directions: 1,
-            smoothing: acch_core::Smoothing::Off.name().into(),
+            smoothing: SmoothingChoice::default(),
             smoothed_db: None,
             confidence_imaging: false,
             source: "synthetic".into(),
             camera_info: None,
             mesh: None,
-            mesh_up: "+y".into(),
+            mesh_up: UpAxis::PosY,
             mesh_unit_m: None,
             roll_search_deg: None,
             camera_roll_deg: 0.0,
@@ -286,27 +302,27 @@ impl Default for PipelineConfig {
             camera_noise_sigma: 0.0,
             camera_blur_sigma: 0.0,
             camera_colour_temp_k: acch_core::light::TRAINING_LIGHT_K as f64,
-            background: "A".into(),
+            background: Background::A,
             elevation_deg: [lo, hi],
             frames: 300,
             fps: 30.0,
-            replay: "recorded".into(),
+            replay: Replay::Recorded,
             seed: 0,
             distance_m: None,
             object_radius_m: None,
             frame_history: 4,
             width: 640,
             height: 480,
-            transport: "shm".into(),
+            transport: Transport::Shm,
             unrated: false,
             zenoh: ZenohConfig::default(),
             rerun: None,
             record: None,
-            record_format: "foxglove".into(),
+            record_format: RecordFormat::Foxglove,
             ros2: Default::default(),
             realtime_priority: 0,
             cpu_latency_us: None,
-            stage_cpus: "auto".into(),
+            stage_cpus: StageCpus::Auto,
             first_frame: 0,
         }
     }
@@ -529,13 +545,136 @@ impl SmoothingChoice {
 
 impl std::str::FromStr for SmoothingChoice {
     type Err = String;
+    /// A smoothing's name or `auto`, in any case.
     fn from_str(s: &str) -> Result<Self, String> {
-        if s.eq_ignore_ascii_case("auto") {
+        if s.eq_ignore_ascii_case(SmoothingChoice::ByFrame.name()) {
             return Ok(SmoothingChoice::ByFrame);
         }
-        s.parse()
-            .map(SmoothingChoice::Fixed)
-            .map_err(|_| format!("unknown smoothing '{s}' (expected off, binomial or auto)"))
+        s.parse().map(SmoothingChoice::Fixed).map_err(|_| {
+            let fixed: Vec<_> = acch_core::Smoothing::ALL
+                .map(acch_core::Smoothing::name)
+                .into();
+            format!(
+                "unknown smoothing '{s}' (expected {} or {})",
+                fixed.join(", "),
+                SmoothingChoice::ByFrame.name()
+            )
+        })
+    }
+}
+
+impl std::fmt::Display for SmoothingChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Declares a closed choice of the configuration: the enum, its names in
+/// the TOML file and on the command line (`NAMES`, the only list of them),
+/// `FromStr` (an unknown name is refused, naming the allowed ones) and
+/// `Display`; a field of it is read and written with `by_name`.
+macro_rules! choice {
+    (
+        $(#[$meta:meta])*
+        pub enum $name:ident ($what:literal) {
+            $($(#[$vmeta:meta])* $variant:ident = $text:literal,)+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum $name {
+            $($(#[$vmeta])* $variant,)+
+        }
+
+        impl $name {
+            /// Every value's name, as the configuration spells it.
+            pub const NAMES: &'static [&'static str] = &[$($text),+];
+
+            /// Its name in the configuration and on the command line.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $($name::$variant => $text,)+
+                }
+            }
+        }
+
+        impl std::str::FromStr for $name {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                match s {
+                    $($text => Ok($name::$variant),)+
+                    _ => Err(format!(
+                        "unknown {} '{s}' (expected {})",
+                        $what,
+                        $name::NAMES.join(" or ")
+                    )),
+                }
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    };
+}
+
+choice! {
+    /// How frames reach recognition (`transport`).
+    pub enum Transport ("transport") {
+        /// Zero copy: recognition reads the pixels where capture wrote
+        /// them, in shared memory (the pipeline).
+        Shm = "shm",
+        /// The benchmark's baseline: capture writes every frame into a Unix
+        /// socket, which recognition reads into its own buffer.
+        Copy = "copy",
+    }
+}
+
+choice! {
+    /// What the recorder writes (`record_format`).
+    pub enum RecordFormat ("record format") {
+        /// An MCAP file of Foxglove schemas and JSON, replayable with
+        /// `--source mcap:FILE`.
+        Foxglove = "foxglove",
+        /// A rosbag2 bag directory of the ROS 2 topics and every frame.
+        Ros2 = "ros2",
+    }
+}
+
+choice! {
+    /// The pace of an `mcap:` replay (`replay`).
+    pub enum Replay ("replay pace") {
+        /// The recording's own frame times.
+        Recorded = "recorded",
+        /// As fast as the pipeline takes the frames.
+        Free = "free",
+    }
+}
+
+/// A field read with its type's `FromStr` and written with its `Display`
+/// (`#[serde(with = "by_name")]`): the TOML spelling is the type's own, and
+/// a name the type does not know is refused as the file is read, with the
+/// type's message (which lists the allowed names) and TOML's line and key.
+mod by_name {
+    use serde::{Deserialize, Deserializer, Serializer, de::Error};
+    use std::fmt::Display;
+    use std::str::FromStr;
+
+    /// Writes `value` by its name.
+    pub fn serialize<T: Display, S: Serializer>(value: &T, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(value)
+    }
+
+    /// Reads a string and parses it.
+    pub fn deserialize<'de, T, D>(d: D) -> Result<T, D::Error>
+    where
+        T: FromStr,
+        T::Err: Display,
+        D: Deserializer<'de>,
+    {
+        String::deserialize(d)?.parse().map_err(D::Error::custom)
     }
 }
 
@@ -578,15 +717,9 @@ impl PipelineConfig {
         })
     }
 
-    /// `smoothing` parsed (off if it names none: [`PipelineConfig::validate`]
-    /// refuses such a configuration first).
-    pub fn smoothing_choice(&self) -> SmoothingChoice {
-        self.smoothing.parse().unwrap_or_default()
-    }
-
     /// The smoothing of the (sharp) databases `db` and `object_dbs`.
     pub fn smoothing(&self) -> acch_core::Smoothing {
-        self.smoothing_choice().fixed()
+        self.smoothing.fixed()
     }
 
     /// Checks every value a process would otherwise trip over later: NaN or
@@ -618,15 +751,8 @@ impl PipelineConfig {
                 ));
             }
         }
-        match self.smoothing.parse::<SmoothingChoice>() {
-            Err(_) => {
-                return Err(bad(
-                    "smoothing",
-                    &self.smoothing,
-                    "must be off, binomial or auto",
-                ));
-            }
-            Ok(SmoothingChoice::ByFrame) if !self.objects.is_empty() => {
+        match self.smoothing {
+            SmoothingChoice::ByFrame if !self.objects.is_empty() => {
                 return Err(bad(
                     "smoothing",
                     &self.smoothing,
@@ -634,7 +760,7 @@ impl PipelineConfig {
                      databases",
                 ));
             }
-            Ok(SmoothingChoice::ByFrame) if self.db.is_some() && self.smoothed_db.is_none() => {
+            SmoothingChoice::ByFrame if self.db.is_some() && self.smoothed_db.is_none() => {
                 return Err(bad(
                     "smoothed_db",
                     &"(unset)",
@@ -643,7 +769,7 @@ impl PipelineConfig {
                      db's object; acch run --smoothed-db)",
                 ));
             }
-            Ok(SmoothingChoice::ByFrame) if self.light_directions > 1 => {
+            SmoothingChoice::ByFrame if self.light_directions > 1 => {
                 return Err(bad(
                     "smoothing",
                     &self.smoothing,
@@ -651,7 +777,7 @@ impl PipelineConfig {
                      confidence is trained for a worse camera under the training light's direction",
                 ));
             }
-            Ok(_) => {}
+            _ => {}
         }
         if !(1..=64).contains(&self.light_directions) {
             return Err(bad(
@@ -694,13 +820,6 @@ impl PipelineConfig {
                 "cpu_latency_us",
                 &us,
                 "must be 0..=2000000000 µs (unset: the system's setting)",
-            ));
-        }
-        if self.stage_cpus.parse::<StageCpus>().is_err() {
-            return Err(bad(
-                "stage_cpus",
-                &self.stage_cpus,
-                "must be auto, none or a comma-separated list of CPU numbers",
             ));
         }
         if let Some(deg) = self.roll_search_deg
@@ -757,16 +876,6 @@ impl PipelineConfig {
                 "must be 0..=180 degrees",
             ));
         }
-        if !matches!(self.transport.as_str(), "shm" | "copy") {
-            return Err(bad("transport", &self.transport, "must be shm or copy"));
-        }
-        if !matches!(self.record_format.as_str(), "foxglove" | "ros2") {
-            return Err(bad(
-                "record_format",
-                &self.record_format,
-                "must be foxglove or ros2",
-            ));
-        }
         self.ros2.validate(&self.object)?;
         if self.ros2.arm_topic.is_some() && self.zenoh.connect.is_empty() {
             return Err(bad(
@@ -774,9 +883,6 @@ impl PipelineConfig {
                 &self.ros2.arm_topic.as_deref().unwrap_or_default(),
                 "needs zenoh.connect: the endpoint of the ROS 2 router or of the arm's publisher",
             ));
-        }
-        if !matches!(self.replay.as_str(), "recorded" | "free") {
-            return Err(bad("replay", &self.replay, "must be recorded or free"));
         }
         let s = self.source.as_str();
         if !(s == "synthetic" || SOURCE_PREFIXES.iter().any(|p| s.starts_with(p))) {
@@ -803,13 +909,6 @@ impl PipelineConfig {
                 "this build has no GStreamer source: build with `--features gstreamer` \
                  (needs the Debian packages libgstreamer1.0-dev and \
                  libgstreamer-plugins-base1.0-dev)",
-            ));
-        }
-        if self.source == "synthetic" && self.background.parse::<Background>().is_err() {
-            return Err(bad(
-                "background",
-                &self.background,
-                "must be plain, A, B, C, clutter or clutter-similar",
             ));
         }
         if self.instance.is_empty()
@@ -896,11 +995,10 @@ impl PipelineConfig {
             0 => self.objects.len(),
             k => k,
         };
-        let up = self.mesh_up.parse().map_err(ConfigError::Object)?;
         self.object_entries()
             .into_iter()
             .take(n)
-            .map(|e| e.object(up, self.mesh_unit_m))
+            .map(|e| e.object(self.mesh_up, self.mesh_unit_m))
             .collect()
     }
 
@@ -928,7 +1026,7 @@ impl PipelineConfig {
 
     /// Whether frames are copied through Unix sockets (`transport = "copy"`).
     pub fn copies_frames(&self) -> bool {
-        self.transport == "copy"
+        self.transport == Transport::Copy
     }
 
     /// How the source is paced when `fps` does not pace it: an `mcap:`
@@ -937,13 +1035,12 @@ impl PipelineConfig {
         if self.gst_pipeline().is_some() {
             return Some(Pace::Source);
         }
-        self.source.starts_with("mcap:").then(|| {
-            if self.replay == "free" {
-                Pace::Free
-            } else {
-                Pace::Recorded
-            }
-        })
+        self.source
+            .starts_with("mcap:")
+            .then_some(match self.replay {
+                Replay::Recorded => Pace::Recorded,
+                Replay::Free => Pace::Free,
+            })
     }
 
     /// The GStreamer pipeline of a `gst:` or `camera:` source.
@@ -984,12 +1081,6 @@ impl PipelineConfig {
         Ok(())
     }
 
-    /// The configured placement of the processing stages.
-    pub fn stage_cpus(&self) -> StageCpus {
-        // Validated: it parses.
-        self.stage_cpus.parse().unwrap_or(StageCpus::Auto)
-    }
-
     /// The launcher's side of `stage_cpus`: resolves it against the CPUs
     /// this process may use, moves this process (and so capture and the
     /// observers it starts) to the other CPUs, and writes the resolved list
@@ -997,7 +1088,7 @@ impl PipelineConfig {
     pub fn place_run(&mut self) -> std::io::Result<Option<Placement>> {
         let allowed = sched::allowed_cpus()?;
         let placement = self
-            .stage_cpus()
+            .stage_cpus
             .resolve(&allowed)
             .map_err(std::io::Error::other)?;
         match &placement {
@@ -1005,9 +1096,9 @@ impl PipelineConfig {
                 if !p.others.is_empty() {
                     sched::pin_to(&p.others)?;
                 }
-                self.stage_cpus = cpu_list(&p.stages);
+                self.stage_cpus = StageCpus::List(p.stages.clone());
             }
-            None => self.stage_cpus = "none".into(),
+            None => self.stage_cpus = StageCpus::Free,
         }
         Ok(placement)
     }
@@ -1016,10 +1107,10 @@ impl PipelineConfig {
     /// pipeline's) to the stages' CPUs; returns them, or `None` when the
     /// stages are not placed.
     pub fn pin_stage(&self) -> std::io::Result<Option<Vec<usize>>> {
-        let cpus = match self.stage_cpus() {
+        let cpus = match &self.stage_cpus {
             StageCpus::Free => return Ok(None),
             // Resolved by the launcher for every stage alike.
-            StageCpus::List(cpus) => cpus,
+            StageCpus::List(cpus) => cpus.clone(),
             auto @ StageCpus::Auto => {
                 let allowed = sched::allowed_cpus()?;
                 match auto.resolve(&allowed).map_err(std::io::Error::other)? {
@@ -1041,7 +1132,7 @@ impl PipelineConfig {
     /// Reads the smoothed set's database of a run with `smoothing =
     /// "auto"`; `None` for a run that does not choose.
     pub fn smoothed_database(&self) -> Result<Option<ViewDatabase>, ConfigError> {
-        if self.smoothing_choice() != SmoothingChoice::ByFrame {
+        if self.smoothing != SmoothingChoice::ByFrame {
             return Ok(None);
         }
         let path = self
@@ -1079,7 +1170,7 @@ impl PipelineConfig {
                     .into_iter()
                     .map(std::sync::Arc::new)
                     .collect(),
-                background: self.background.parse().map_err(ConfigError::Object)?,
+                background: self.background,
                 textures: acch_capture::TextureSet::HeldOut,
                 seed: self.seed,
                 width: self.width,
@@ -1096,7 +1187,7 @@ impl PipelineConfig {
             .unwrap_or(DEFAULT_DISTANCE * object.radius_m());
         Ok(SourceSpec::Synthetic(SyntheticCamera {
             object: std::sync::Arc::new(object),
-            background: self.background.parse().map_err(ConfigError::Object)?,
+            background: self.background,
             textures: acch_capture::TextureSet::HeldOut,
             seed: self.seed,
             width: self.width,
@@ -1145,9 +1236,8 @@ impl PipelineConfig {
     pub fn scene_object(&self) -> Result<acch_capture::Object, ConfigError> {
         let object = match &self.mesh {
             Some(path) => {
-                let up = self.mesh_up.parse().map_err(ConfigError::Object)?;
-                let object =
-                    acch_capture::Object::load_mesh(path, up).map_err(ConfigError::Object)?;
+                let object = acch_capture::Object::load_mesh(path, self.mesh_up)
+                    .map_err(ConfigError::Object)?;
                 match self.mesh_unit_m {
                     Some(unit) => object.with_mesh_unit_m(unit).map_err(ConfigError::Object)?,
                     None => object,
@@ -1215,12 +1305,18 @@ impl PipelineConfig {
 /// Prefixes of the sources that name something.
 const SOURCE_PREFIXES: [&str; 4] = ["folder:", "mcap:", "gst:", "camera:"];
 
-/// CPU numbers as `stage_cpus` writes them (`2,3`).
-fn cpu_list(cpus: &[usize]) -> String {
-    cpus.iter()
-        .map(usize::to_string)
-        .collect::<Vec<_>>()
-        .join(",")
+/// The dotted key (`transport`, `ros2.distro`) of the value TOML's error
+/// is about, `None` when it is not about one value: TOML records it, and
+/// writes it out only when it has no line to point at.
+fn toml_key(e: &toml::de::Error) -> Option<String> {
+    let mut plain = e.clone();
+    plain.set_input(None);
+    let text = plain.to_string();
+    let key = text
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("in `")?.strip_suffix('`'))?;
+    Some(key.to_owned())
 }
 
 #[cfg(test)]
@@ -1266,7 +1362,6 @@ mod tests {
             ("camera_shutter_ms = -1.0", "camera_shutter_ms"),
             ("camera_colour_temp_k = 100.0", "camera_colour_temp_k"),
             ("roll_search_deg = 200.0", "roll_search_deg"),
-            ("smoothing = \"gaussian\"", "smoothing"),
             ("camera_noise_sigma = -1.0", "camera_noise_sigma"),
             ("camera_blur_sigma = 9.0", "camera_blur_sigma"),
             (
@@ -1274,11 +1369,8 @@ mod tests {
                 "smoothing",
             ),
             ("smoothing = \"auto\"\nlight_directions = 8", "smoothing"),
-            ("transport = \"udp\"", "transport"),
-            ("replay = \"fast\"", "replay"),
             ("source = \"camera\"", "source"),
             ("source = \"folder:\"", "source"),
-            ("background = \"Z\"", "background"),
             ("elevation_deg = [50.0, 40.0]", "elevation_deg"),
             ("elevation_deg = [-1.0, 40.0]", "elevation_deg"),
             ("frames = -5", "frames"),
@@ -1287,11 +1379,105 @@ mod tests {
             ("[zenoh]\nprefix = \"a/*\"", "zenoh.prefix"),
             ("cpu_latency_us = 2000000001", "cpu_latency_us"),
             ("cpu_latency_us = -1", "cpu_latency_us"),
+            ("frames = 1\n[ros2]\ndistro = 7", "ros2.distro"),
         ] {
             let e = PipelineConfig::parse(text).expect_err(text);
-            let msg = anyhow_chain(&e);
+            let msg = named(&e);
             assert!(msg.contains(key), "{text}: {msg}");
         }
+        // The closed choices: refused as the file is read, naming the key
+        // and the allowed values; a number where a name belongs as well.
+        for (text, key, allowed) in [
+            ("transport = \"udp\"", "transport", "shm or copy"),
+            ("transport = 1", "transport", "a string"),
+            (
+                "record_format = \"rosbag\"",
+                "record_format",
+                "foxglove or ros2",
+            ),
+            ("replay = \"fast\"", "replay", "recorded or free"),
+            (
+                "smoothing = \"gaussian\"",
+                "smoothing",
+                "off, binomial or auto",
+            ),
+            ("mesh_up = \"up\"", "mesh_up", "+x, -x, +y, -y, +z, -z"),
+            ("background = \"Z\"", "background", "clutter-similar"),
+            // Refused whatever the source, not only for the simulated scene.
+            (
+                "source = \"folder:d\"\nbackground = \"Z\"",
+                "background",
+                "clutter-similar",
+            ),
+            ("stage_cpus = \"x\"", "stage_cpus", "auto, none or a list"),
+            ("stage_cpus = \"1,\"", "stage_cpus", "auto, none or a list"),
+        ] {
+            let e = PipelineConfig::parse(text).expect_err(text);
+            let msg = named(&e);
+            assert!(msg.contains(key), "{text}: {msg}");
+            assert!(msg.contains(allowed), "{text}: {msg}");
+        }
+    }
+
+    #[test]
+    fn a_printed_chain_says_each_cause_once() {
+        let e = PipelineConfig::parse("transport = \"udp\"").unwrap_err();
+        let chain = anyhow_chain(&e);
+        assert_eq!(
+            chain.matches("unknown transport 'udp'").count(),
+            1,
+            "{chain}"
+        );
+        let e = PipelineConfig {
+            object: "nosuch".into(),
+            ..Default::default()
+        }
+        .scene_object()
+        .unwrap_err();
+        let chain = anyhow_chain(&e);
+        assert_eq!(
+            chain.matches("unknown object 'nosuch'").count(),
+            1,
+            "{chain}"
+        );
+    }
+
+    /// What the error says besides TOML's quote of the line, which holds
+    /// the key whatever the error: the message must name it.
+    fn named(e: &ConfigError) -> String {
+        match e {
+            ConfigError::Toml(source) => format!("{e}: {}", source.message()),
+            e => anyhow_chain(e),
+        }
+    }
+
+    #[test]
+    fn the_closed_choices_are_written_as_read() {
+        let text = "mesh_up = \"-z\"\nsmoothing = \"binomial\"\nbackground = \"plain:1,2,3\"\n\
+                    replay = \"free\"\ntransport = \"copy\"\nrecord_format = \"ros2\"\n\
+                    stage_cpus = \"2,3\"\n";
+        let c = PipelineConfig::parse(text).unwrap();
+        assert_eq!(c.mesh_up, UpAxis::NegZ);
+        assert_eq!(
+            c.smoothing,
+            SmoothingChoice::Fixed(acch_core::Smoothing::Binomial)
+        );
+        assert_eq!(c.background, Background::Plain([1, 2, 3]));
+        assert_eq!(c.replay, Replay::Free);
+        assert_eq!(c.transport, Transport::Copy);
+        assert_eq!(c.record_format, RecordFormat::Ros2);
+        assert_eq!(c.stage_cpus, StageCpus::List(vec![2, 3]));
+        let written = toml::to_string(&c).unwrap();
+        for line in text.lines() {
+            assert!(written.lines().any(|l| l == line), "{line} in {written}");
+        }
+        assert_eq!(PipelineConfig::parse(&written).unwrap(), c);
+        // What the launcher writes back for the stage processes.
+        let mut placed = c.clone();
+        placed.stage_cpus = StageCpus::Free;
+        let written = toml::to_string(&placed).unwrap();
+        assert!(written.contains("stage_cpus = \"none\""), "{written}");
+        assert_eq!(PipelineConfig::parse(&written).unwrap(), placed);
     }
 
     /// The error and its sources, as the command line prints them.
@@ -1374,7 +1560,6 @@ mod tests {
                     prop_assert!(c.object_radius_m.is_none_or(|d| d.is_finite() && d > 0.0));
                     prop_assert!((16..=8192).contains(&c.width) && (16..=8192).contains(&c.height));
                     prop_assert!(c.frame_history >= 1);
-                    prop_assert!(c.stage_cpus.parse::<StageCpus>().is_ok());
                     // What was accepted is written back and read the same.
                     let again = PipelineConfig::parse(&toml::to_string(&c).unwrap());
                     prop_assert!(again.is_ok(), "{:?}", again.err());

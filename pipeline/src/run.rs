@@ -19,6 +19,7 @@ use crate::supervisor::{
     self_usage, status_field,
 };
 use crate::wire::{Hop, STAGES, StageId};
+use acch_ipc::sched::StageCpus;
 use acch_ipc::{IpcError, Wake, remove_stale_resources};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -239,7 +240,7 @@ impl RunSummary {
             frame_reads_in_place: reads(|m| m.envelope().reads.in_place),
             frame_bytes_published: 3 * w as u64 * h as u64 * got.len() as u64,
             transport: if mode == "processes" {
-                cfg.transport.clone()
+                cfg.transport.to_string()
             } else {
                 mode.into()
             },
@@ -469,7 +470,7 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
     let cfg = &cfg;
     // Pinned to one CPU the objects' chains would take turns: "auto"
     // leaves them every CPU (docs/multi.md).
-    if cfg.stage_cpus != "auto" {
+    if cfg.stage_cpus != StageCpus::Auto {
         cfg.pin_stage().map_err(|source| RunError::Sched {
             what: format!("stage_cpus = {}", cfg.stage_cpus),
             source,

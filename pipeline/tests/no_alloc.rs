@@ -303,7 +303,7 @@ fn a_stage_process_loop_allocates_only_iceoryx2s_loan_once_warm() {
         db: Some(db_path),
         width: w,
         height: h,
-        stage_cpus: "none".into(),
+        stage_cpus: acch_ipc::sched::StageCpus::Free,
         ..Default::default()
     };
     let _wake = acch_ipc::wake::RunFiles::new(&cfg.instance);

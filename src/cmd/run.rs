@@ -6,7 +6,8 @@
 
 use super::common::ObjectArgs;
 use acch_capture::Background;
-use acch_pipeline::config::{ObjectEntry, SmoothingChoice};
+use acch_ipc::sched::StageCpus;
+use acch_pipeline::config::{ObjectEntry, RecordFormat, Replay, SmoothingChoice, Transport};
 use acch_pipeline::{PipelineConfig, RunOptions, RunSummary, StageId};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -66,7 +67,7 @@ pub struct RunArgs {
     /// the sharp ones (both trained on first use; one object). Default
     /// off, or the configuration's.
     #[arg(long, value_name = "off|binomial|auto")]
-    pub(crate) smoothing: Option<acch_pipeline::config::SmoothingChoice>,
+    pub(crate) smoothing: Option<SmoothingChoice>,
     /// Use (and on first use train) the databases whose confidence network
     /// was trained on scenes under other light and a worse camera and reads
     /// the absolute match value, so a weak match is rejected (`acch train
@@ -117,11 +118,11 @@ pub struct RunArgs {
     /// context switch instead of a cross-CPU wake-up (default: auto, or
     /// the configuration's).
     #[arg(long, value_name = "CPUS")]
-    pub(crate) stage_cpus: Option<String>,
+    pub(crate) stage_cpus: Option<StageCpus>,
     /// Pace of an mcap: replay: recorded (the recording's frame times) or
     /// free (as fast as the pipeline takes frames).
     #[arg(long, value_name = "PACE")]
-    pub(crate) replay: Option<String>,
+    pub(crate) replay: Option<Replay>,
     /// Pipeline configuration (TOML; every key is listed in docs/pipeline.md).
     #[arg(long, value_name = "FILE")]
     pub(crate) config: Option<PathBuf>,
@@ -156,7 +157,7 @@ pub struct RunArgs {
     /// How frames reach recognition: shm (zero copy) or copy (the
     /// benchmark's baseline: through a Unix socket).
     #[arg(long)]
-    pub(crate) transport: Option<String>,
+    pub(crate) transport: Option<Transport>,
     /// Log what the pipeline sees to rerun: save:FILE.rrd, spawn (starts a
     /// viewer) or connect:URL.
     #[arg(long, value_name = "SINK")]
@@ -170,7 +171,7 @@ pub struct RunArgs {
     /// replayable with --source mcap:FILE) or ros2 (the ROS 2 topics and
     /// every frame as sensor_msgs/Image, for `ros2 bag play`).
     #[arg(long, value_name = "FORMAT")]
-    pub(crate) record_format: Option<String>,
+    pub(crate) record_format: Option<RecordFormat>,
     /// Publish on ROS 2 topics over zenoh as an rmw_zenoh node: the seeds
     /// and fused poses (geometry_msgs/PoseWithCovarianceStamped, metres),
     /// camera info and /tf, under the [ros2] namespace (see
@@ -197,11 +198,9 @@ impl RunArgs {
         }
         set!(frames => frames, fps => fps, seed => seed, transport => transport,
              source => source, replay => replay, rt_priority => realtime_priority,
-             stage_cpus => stage_cpus, record_format => record_format);
+             stage_cpus => stage_cpus, record_format => record_format,
+             background => background, smoothing => smoothing);
         cfg.ros2.enabled |= self.ros2;
-        if let Some(b) = self.background {
-            cfg.background = b.to_string();
-        }
         if let Some(e) = self.elevation {
             cfg.elevation_deg = e;
         }
@@ -230,7 +229,7 @@ impl RunArgs {
         if let Some(mesh) = &self.object.mesh {
             cfg.mesh = Some(mesh.clone());
             if let Some(up) = self.object.mesh_up {
-                cfg.mesh_up = up.to_string();
+                cfg.mesh_up = up;
             }
             cfg.mesh_unit_m = self.object.mesh_unit_m;
         }
@@ -264,9 +263,6 @@ impl RunArgs {
         if let Some(k) = self.light_directions {
             cfg.light_directions = k;
         }
-        if let Some(m) = self.smoothing {
-            cfg.smoothing = m.name().into();
-        }
         cfg.confidence_imaging |= self.confidence_imaging;
         cfg.validate().context("invalid pipeline configuration")?;
         if !cfg.objects.is_empty() {
@@ -287,7 +283,7 @@ impl RunArgs {
             let (_, path) =
                 acch_train::cache::cached_recipe_database(&object, cache.clone(), recipe)?;
             cfg.db = Some(path);
-            if cfg.smoothing_choice() == SmoothingChoice::ByFrame {
+            if cfg.smoothing == SmoothingChoice::ByFrame {
                 let smoothed = recipe.smoothed_set();
                 let (_, path) =
                     acch_train::cache::cached_recipe_database(&object, cache, smoothed)?;
@@ -303,7 +299,7 @@ impl RunArgs {
     /// is; for a built-in object or a mesh the cached one trained for the
     /// roll search objects off the optical axis need (on first use).
     fn object_databases(&self, cfg: &PipelineConfig) -> Result<Vec<PathBuf>> {
-        let up = cfg.mesh_up.parse()?;
+        let up = cfg.mesh_up;
         let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
         cfg.object_entries()
             .into_iter()
@@ -395,7 +391,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     if let Some(db) = cfg
         .smoothed_db
         .as_ref()
-        .filter(|_| cfg.smoothing_choice() == SmoothingChoice::ByFrame)
+        .filter(|_| cfg.smoothing == SmoothingChoice::ByFrame)
     {
         eprintln!(
             "acch run: smoothed view database for noisy, compressed or blurred frames {}",

@@ -280,7 +280,7 @@ impl RunRecording {
     /// Creates `path` for `cfg`'s run over a database of `views` views: an
     /// MCAP file, or with `record_format = "ros2"` a bag directory.
     pub fn create(cfg: &PipelineConfig, path: &Path, views: usize) -> Result<Self, ObserveError> {
-        let format = if cfg.record_format == "ros2" {
+        let format = if cfg.record_format == crate::config::RecordFormat::Ros2 {
             let dir = crate::ros2::bag_dir(path);
             let bag = crate::ros2::Ros2Bag::create(&dir, &cfg.ros2, &cfg.object)?;
             tracing::info!("record: a rosbag2 bag in {}", dir.display());

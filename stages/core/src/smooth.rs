@@ -21,6 +21,9 @@ pub enum Smoothing {
 }
 
 impl Smoothing {
+    /// Every smoothing, in the order their names are listed.
+    pub const ALL: [Smoothing; 2] = [Smoothing::Off, Smoothing::Binomial];
+
     /// Its identifier in a database file.
     pub fn id(self) -> u8 {
         match self {
@@ -52,10 +55,13 @@ impl std::str::FromStr for Smoothing {
 
     /// `off` or `binomial`, in any case.
     fn from_str(s: &str) -> Result<Self, String> {
-        [Smoothing::Off, Smoothing::Binomial]
+        Smoothing::ALL
             .into_iter()
             .find(|m| m.name().eq_ignore_ascii_case(s))
-            .ok_or_else(|| format!("unknown smoothing '{s}' (expected off or binomial)"))
+            .ok_or_else(|| {
+                let names: Vec<_> = Smoothing::ALL.map(Smoothing::name).into();
+                format!("unknown smoothing '{s}' (expected {})", names.join(" or "))
+            })
     }
 }
 
