@@ -501,6 +501,12 @@ impl ImageParity {
             .bop_ids
             .is_some_and(|(_, im_id, _)| (im_id % 2 == 0) == (self == ImageParity::Even))
     }
+
+    /// `images` split into those to train on (these) and those to
+    /// evaluate on (the rest), so that no evaluated image was trained on.
+    pub fn split(self, images: Vec<LabelledImage>) -> (Vec<LabelledImage>, Vec<LabelledImage>) {
+        images.into_iter().partition(|i| self.holds(i))
+    }
 }
 
 /// A database trained from `images` themselves (photographs: the

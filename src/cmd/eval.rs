@@ -552,7 +552,7 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
                 ParityArg::Even => dataset::ImageParity::Even,
                 ParityArg::Odd => dataset::ImageParity::Odd,
             };
-            let (train, test): (Vec<_>, Vec<_>) = images.into_iter().partition(|i| parity.holds(i));
+            let (train, test) = parity.split(images);
             eprintln!(
                 "trained from {} instances' photographs ({parity:?} image ids), evaluated on the other {}",
                 train.len(),
