@@ -379,11 +379,13 @@ pub struct Ros2Config {
     pub node: String,
     /// `jazzy` (type hashes in the keys; also Kilted and Rolling) or
     /// `humble` (no type hashes).
-    pub distro: String,
+    #[serde(with = "by_name")]
+    pub distro: Ros2Distro,
     /// The rmw_zenoh attachment layout: `current` (Jazzy 0.2.4 and later,
     /// Kilted, Rolling, Humble 0.1.2 and later) or `legacy` (Jazzy 0.2.0 to
     /// 0.2.3, Humble 0.1.0 and 0.1.1).
-    pub attachment: String,
+    #[serde(with = "by_name")]
+    pub attachment: Ros2Attachment,
     /// The camera's optical frame: `header.frame_id` of every message.
     pub frame_id: String,
     /// Publish each object's fused pose on `/tf` as `<frame_id> ->
@@ -398,7 +400,8 @@ pub struct Ros2Config {
     pub arm_topic: Option<String>,
     /// Its type: `pose_stamped` (geometry_msgs/PoseStamped) or
     /// `transform_stamped` (geometry_msgs/TransformStamped).
-    pub arm_type: String,
+    #[serde(with = "by_name")]
+    pub arm_type: ArmMessage,
     /// How old the arm's last pose may be at a frame's capture before the
     /// frame counts as without one (its motion unknown), ms.
     pub arm_max_age_ms: u32,
@@ -411,13 +414,13 @@ impl Default for Ros2Config {
             domain_id: 0,
             namespace: "/".into(),
             node: "acch".into(),
-            distro: "jazzy".into(),
-            attachment: "current".into(),
+            distro: Ros2Distro::Jazzy,
+            attachment: Ros2Attachment::Current,
             frame_id: "camera_optical_frame".into(),
             tf: true,
             image_every: 0,
             arm_topic: None,
-            arm_type: "pose_stamped".into(),
+            arm_type: ArmMessage::PoseStamped,
             arm_max_age_ms: 200,
         }
     }
@@ -457,23 +460,6 @@ impl Ros2Config {
                 "ros2.frame_id",
                 &self.frame_id,
                 "must be a non-empty ASCII tf frame name without spaces or a leading /",
-            ));
-        }
-        if !matches!(self.distro.as_str(), "jazzy" | "humble") {
-            return Err(bad("ros2.distro", &self.distro, "must be jazzy or humble"));
-        }
-        if !matches!(self.attachment.as_str(), "current" | "legacy") {
-            return Err(bad(
-                "ros2.attachment",
-                &self.attachment,
-                "must be current or legacy",
-            ));
-        }
-        if !matches!(self.arm_type.as_str(), "pose_stamped" | "transform_stamped") {
-            return Err(bad(
-                "ros2.arm_type",
-                &self.arm_type,
-                "must be pose_stamped or transform_stamped",
             ));
         }
         if let Some(t) = &self.arm_topic {
@@ -640,6 +626,36 @@ choice! {
         Foxglove = "foxglove",
         /// A rosbag2 bag directory of the ROS 2 topics and every frame.
         Ros2 = "ros2",
+    }
+}
+
+choice! {
+    /// The ROS 2 distribution of the peers (`ros2.distro`).
+    pub enum Ros2Distro ("ROS 2 distro") {
+        /// Jazzy, Kilted and Rolling: type hashes in the keys.
+        Jazzy = "jazzy",
+        /// Humble: no type hashes.
+        Humble = "humble",
+    }
+}
+
+choice! {
+    /// The rmw_zenoh attachment layout of the peers (`ros2.attachment`).
+    pub enum Ros2Attachment ("rmw_zenoh attachment layout") {
+        /// Jazzy 0.2.4 and later, Kilted, Rolling, Humble 0.1.2 and later.
+        Current = "current",
+        /// Jazzy 0.2.0 to 0.2.3, Humble 0.1.0 and 0.1.1.
+        Legacy = "legacy",
+    }
+}
+
+choice! {
+    /// The message type of the arm's camera poses (`ros2.arm_type`).
+    pub enum ArmMessage ("arm message type") {
+        /// geometry_msgs/PoseStamped.
+        PoseStamped = "pose_stamped",
+        /// geometry_msgs/TransformStamped.
+        TransformStamped = "transform_stamped",
     }
 }
 
@@ -1410,6 +1426,21 @@ mod tests {
                 "clutter-similar",
             ),
             ("stage_cpus = \"x\"", "stage_cpus", "auto, none or a list"),
+            (
+                "[ros2]\ndistro = \"iron\"",
+                "ros2.distro",
+                "jazzy or humble",
+            ),
+            (
+                "[ros2]\nattachment = \"old\"",
+                "ros2.attachment",
+                "current or legacy",
+            ),
+            (
+                "[ros2]\narm_type = \"pose\"",
+                "ros2.arm_type",
+                "pose_stamped or transform_stamped",
+            ),
             ("stage_cpus = \"1,\"", "stage_cpus", "auto, none or a list"),
         ] {
             let e = PipelineConfig::parse(text).expect_err(text);

@@ -8,7 +8,7 @@
 //! `config`; why it fails, [`Ros2OutError`], sits beside the observers'
 //! error in `observe`.
 
-use crate::config::Ros2Config;
+use crate::config::{ArmMessage, Ros2Attachment, Ros2Config, Ros2Distro};
 use crate::frame::FrameHeader;
 use crate::observe::{Observe, ObserveError, Ros2OutError};
 use crate::stages::Seeded;
@@ -46,15 +46,13 @@ impl Ros2Config {
             domain_id: self.domain_id,
             namespace: self.namespace.clone(),
             name: name.to_owned(),
-            distro: if self.distro == "humble" {
-                Distro::Humble
-            } else {
-                Distro::Jazzy
+            distro: match self.distro {
+                Ros2Distro::Jazzy => Distro::Jazzy,
+                Ros2Distro::Humble => Distro::Humble,
             },
-            attachment: if self.attachment == "legacy" {
-                AttachmentFormat::Legacy
-            } else {
-                AttachmentFormat::Current
+            attachment: match self.attachment {
+                Ros2Attachment::Current => AttachmentFormat::Current,
+                Ros2Attachment::Legacy => AttachmentFormat::Legacy,
             },
         }
     }
@@ -458,7 +456,7 @@ impl ArmFeed {
                 *l = Some((pose, acch_ipc::now_ns()));
             }
         };
-        let subscriber = if config.arm_type == "transform_stamped" {
+        let subscriber = if config.arm_type == ArmMessage::TransformStamped {
             let at = latest.clone();
             ArmSubscriber::Transform(node.subscriber::<TransformStamped, _>(
                 topic,
@@ -554,7 +552,7 @@ pub struct Ros2Bag {
 impl Ros2Bag {
     /// Creates bag directory `dir` for `object`'s results.
     pub fn create(dir: &Path, config: &Ros2Config, object: &str) -> Result<Self, Ros2OutError> {
-        let mut bag = BagWriter::create(dir, &config.distro)?;
+        let mut bag = BagWriter::create(dir, config.distro.name())?;
         // The names the node publishes under.
         let resolve = |t: &str| {
             names::resolve_topic(&config.namespace, t).map_err(acch_ros2::node::Ros2Error::from)
