@@ -81,42 +81,54 @@ fn run_with_config(text: &str) -> Output {
 
 #[test]
 fn malformed_toml_names_the_file_and_line() {
-    let out = run_with_config("frames = 30\nfps = [1, \n");
+    let out = run_with_config("[camera]\nframes = 30\nfps = [1, \n");
     let err = fails_naming(&out, "pipeline.toml");
-    assert!(err.contains("line 2"), "{err}");
+    assert!(err.contains("line 3"), "{err}");
 }
 
 #[test]
 fn nan_negative_and_out_of_range_parameters_name_the_key() {
     for (text, key) in [
-        ("fps = nan", "fps = NaN"),
-        ("fps = -30.0", "fps = -30"),
-        ("distance_m = -5.0", "distance_m = -5"),
-        ("distance_m = nan", "distance_m = NaN"),
-        ("object_radius_m = 0.0", "object_radius_m = 0"),
+        ("[camera]\nfps = nan", "camera.fps = NaN"),
+        ("[camera]\nfps = -30.0", "camera.fps = -30"),
+        ("[camera]\ndistance_m = -5.0", "camera.distance_m = -5"),
+        ("[camera]\ndistance_m = nan", "camera.distance_m = NaN"),
+        ("[object]\nradius_m = 0.0", "object.radius_m = 0"),
         ("[ros2]\nnamespace = \"robot1\"", "ros2.namespace = robot1"),
         // A closed choice: refused as the file is read, by TOML's error,
         // which points at the line; ours names the key.
-        ("record_format = \"rosbag\"", "(key `record_format`)"),
-        ("frames = -1", "frames"),
-        ("width = 0", "width = 0"),
-        ("height = 99999", "height = 99999"),
-        ("frame_history = 0", "frame_history = 0"),
-        ("transport = \"carrier-pigeon\"", "carrier-pigeon"),
-        ("source = \"webcam\"", "webcam"),
-        ("background = \"mars\"", "mars"),
-        ("smoothing = \"gaussian\"", "(key `smoothing`)"),
-        ("stage_cpus = \"all\"", "(key `stage_cpus`)"),
+        (
+            "[observers]\nrecord_format = \"rosbag\"",
+            "(key `observers.record_format`)",
+        ),
+        ("[camera]\nframes = -1", "(key `camera.frames`)"),
+        ("[camera]\nwidth = 0", "camera.width = 0"),
+        ("[camera]\nheight = 99999", "camera.height = 99999"),
+        ("[run]\nframe_history = 0", "run.frame_history = 0"),
+        ("[run]\ntransport = \"carrier-pigeon\"", "carrier-pigeon"),
+        ("[camera]\nsource = \"webcam\"", "camera.source = webcam"),
+        ("[synthetic]\nbackground = \"mars\"", "mars"),
+        (
+            "[estimate]\nsmoothing = \"gaussian\"",
+            "(key `estimate.smoothing`)",
+        ),
+        ("[run]\nstage_cpus = \"all\"", "(key `run.stage_cpus`)"),
+        // An unknown key in a section, and a key of the flat layout.
+        ("[camera]\nexposure = 2.0", "(key `camera.exposure`)"),
+        ("fps = 30.0", "(key `fps`)"),
         ("[zenoh]\nlisten = \"tcp/127.0.0.1:7447\"", "listen"),
         (
-            "objects = [\"fruitbox\", \"can\"]\nobjects_in_view = 3",
-            "objects_in_view = 3",
+            "[objects]\nlist = [\"fruitbox\", \"can\"]\nin_view = 3",
+            "objects.in_view = 3",
         ),
         (
-            "objects = [\"fruitbox\", \"can\"]\nrerun = \"spawn\"",
-            "rerun = spawn",
+            "[objects]\nlist = [\"fruitbox\", \"can\"]\n[observers]\nrerun = \"spawn\"",
+            "observers.rerun = spawn",
         ),
-        ("objects = [\"fruitbox\", \"\"]", "objects = \"\""),
+        (
+            "[objects]\nlist = [\"fruitbox\", \"\"]",
+            "objects.list = \"\"",
+        ),
     ] {
         let out = run_with_config(text);
         fails_naming(&out, key);
@@ -127,13 +139,13 @@ fn nan_negative_and_out_of_range_parameters_name_the_key() {
 fn nan_and_negative_command_line_values_name_the_option() {
     let dir = tempfile::tempdir().unwrap();
     for (args, what) in [
-        (&["run", "--fps", "NaN"][..], "fps = NaN"),
-        (&["run", "--fps=-2"][..], "fps = -2"),
+        (&["run", "--fps", "NaN"][..], "camera.fps = NaN"),
+        (&["run", "--fps=-2"][..], "camera.fps = -2"),
         (&["run", "--frames=-3"][..], "--frames"),
         (&["run", "--resolution", "0x480"][..], "0x480"),
         (
             &["run", "--light-directions", "0"][..],
-            "light_directions = 0",
+            "estimate.light_directions = 0",
         ),
         (
             &["eval", "--protocol", "robust", "--light-directions", "0"][..],
@@ -261,7 +273,7 @@ fn valid_database() -> &'static PathBuf {
         std::fs::write(
             &cfg,
             format!(
-                "frames = 3\nfps = 0.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+                "[camera]\nframes = 3\nfps = 0.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
                 free_port()
             ),
         )
@@ -373,7 +385,8 @@ fn folder_run(dir: &Path, folder: &Path, frames: u32) -> Output {
     std::fs::write(
         &cfg,
         format!(
-            "source = \"folder:{}\"\nframes = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            "[camera]\nsource = \"folder:{}\"\nframes = {frames}\nfps = 30.0\n\
+             [zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
             folder.display(),
             free_port()
         ),

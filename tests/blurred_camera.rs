@@ -150,8 +150,7 @@ fn a_run_for_a_noisy_camera_uses_the_smoothing_imaging_aware_database() {
     // The configuration's keys choose the same database.
     std::fs::write(
         &config,
-        // Top-level keys before the [zenoh] table.
-        format!("smoothing = \"binomial\"\nconfidence_imaging = true\n{zenoh}"),
+        format!("[estimate]\nsmoothing = \"binomial\"\nconfidence_imaging = true\n{zenoh}"),
     )
     .unwrap();
     let (configured, _) = run_naming_database(&["--config", cfg], dir.path());
@@ -193,7 +192,7 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     // drops, and counts, a frame whose pixels left its queue rather than
     // estimate it unverified): measured 22 of 30 delivered, each frame
     // either delivered or counted as dropped.
-    std::fs::write(&config, format!("camera_noise_sigma = 5.0\n{zenoh}")).unwrap();
+    std::fs::write(&config, format!("[synthetic]\nnoise_sigma = 5.0\n{zenoh}")).unwrap();
     let (_, _, summary) = run_naming_databases(&args, dir.path());
     let results = count(&summary, "results");
     assert!(results >= 15, "{summary}");
@@ -210,7 +209,7 @@ fn a_run_that_chooses_per_frame_sends_a_noisy_or_blurred_camera_through_the_smoo
     // that recipe alone does, but from the frame as it is rather than
     // smoothed again, so no less accurately (docs/accuracy.md, "A blurred
     // object" and "A blurred frame is not smoothed again").
-    std::fs::write(&config, format!("camera_blur_sigma = 2.0\n{zenoh}")).unwrap();
+    std::fs::write(&config, format!("[synthetic]\nblur_sigma = 2.0\n{zenoh}")).unwrap();
     let (_, _, auto) = run_naming_databases(&in_process, dir.path());
     let recipe = ["--smoothing", "binomial", "--confidence-imaging"];
     let (_, alone) = run_naming_database(&[&["--config", cfg][..], &recipe].concat(), dir.path());

@@ -27,15 +27,16 @@ fn run(
     db: Option<&Path>,
 ) -> Vec<(f64, Option<f64>)> {
     let config = dir.join(format!("r{camera_roll}-{search:?}-{}.toml", db.is_some()));
+    // Dotted keys, so that the optional ones can follow.
     let mut text = format!(
-        "frames = 300\nfps = 0.0\nseed = 11\nelevation_deg = [45.5, 70.0]\n\
-         camera_roll_deg = {camera_roll}\n"
+        "camera.frames = 300\ncamera.fps = 0.0\nsynthetic.seed = 11\n\
+         synthetic.elevation_deg = [45.5, 70.0]\nsynthetic.roll_deg = {camera_roll}\n"
     );
     if let Some(search) = search {
-        text += &format!("roll_search_deg = {search}\n");
+        text += &format!("estimate.roll_search_deg = {search}\n");
     }
     if let Some(db) = db {
-        text += &format!("db = {:?}\n", db.display().to_string());
+        text += &format!("object.db = {:?}\n", db.display().to_string());
     }
     text += &format!("[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n", free_port());
     std::fs::write(&config, text).unwrap();

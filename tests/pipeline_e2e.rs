@@ -37,7 +37,11 @@ fn seeds_reach_an_independent_subscriber_and_match_the_ground_truth() {
     std::fs::write(
         &config,
         format!(
-            "frames = {frames}\nfps = 30.0\nelevation_deg = [20.0, 90.0]\nbackground = \"clutter-similar\"\nseed = 20\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{pipe_port}\"]\nconnect = [\"tcp/127.0.0.1:{sub_port}\"]\n"
+            "[camera]\nframes = {frames}\nfps = 30.0\n\
+             [synthetic]\nelevation_deg = [20.0, 90.0]\nbackground = \"clutter-similar\"\n\
+             seed = 20\n\
+             [zenoh]\nlisten = [\"tcp/127.0.0.1:{pipe_port}\"]\n\
+             connect = [\"tcp/127.0.0.1:{sub_port}\"]\n"
         ),
     )
     .unwrap();

@@ -152,7 +152,7 @@ fn every_stage_killed_in_turn_is_restarted_and_every_result_is_the_undisturbed_o
     let dir = tempfile::tempdir().unwrap();
     let frames = 900u64;
     // Below the database's lowest slice too: frames that get rejected.
-    let scene = "elevation_deg = [20.0, 90.0]\n";
+    let scene = "[synthetic]\nelevation_deg = [20.0, 90.0]\n";
     // The undisturbed run of the same frames: the stages chained in one
     // process (bit-identical to the processes: tests/executors.rs), as fast
     // as they go.
@@ -161,7 +161,8 @@ fn every_stage_killed_in_turn_is_restarted_and_every_result_is_the_undisturbed_o
     std::fs::write(
         base.join("pipeline.toml"),
         format!(
-            "{scene}frames = {frames}\nfps = 0.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            "{scene}[camera]\nframes = {frames}\nfps = 0.0\n\
+             [zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
             free_port()
         ),
     )
@@ -183,7 +184,8 @@ fn every_stage_killed_in_turn_is_restarted_and_every_result_is_the_undisturbed_o
     let (mut run, rx, json) = launch(
         dir.path(),
         &format!(
-            "{scene}frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            "{scene}[camera]\nframes = {frames}\nfps = 30.0\n\
+             [zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
             free_port()
         ),
     );
@@ -285,7 +287,7 @@ fn a_stalled_stage_costs_counted_drops_not_memory_and_the_run_recovers() {
     let (mut run, rx, json) = launch(
         dir.path(),
         &format!(
-            "frames = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
+            "[camera]\nframes = {frames}\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\n",
             free_port()
         ),
     );
@@ -374,7 +376,9 @@ fn shared_memory_is_owner_only_and_zenoh_listens_on_loopback() {
     let port = free_port();
     let (mut run, rx, _json) = launch(
         dir.path(),
-        &format!("frames = 90\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n"),
+        &format!(
+            "[camera]\nframes = 90\nfps = 30.0\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n"
+        ),
     );
     let launcher = run.0.id();
     wait_for(&rx, "stages connected", Duration::from_secs(240));

@@ -504,7 +504,8 @@ fn several_objects_publish_their_seeds_from_nodes_of_their_own() {
         // shape's verification rejects every estimate (docs/limitations.md);
         // this test is about the topics, so the colour rules judge.
         format!(
-            "verify_shape = false\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n[ros2]\nenabled = true\n"
+            "[estimate]\nverify_shape = false\n[zenoh]\nlisten = [\"tcp/127.0.0.1:{port}\"]\n\
+             [ros2]\nenabled = true\n"
         ),
     )
     .unwrap();

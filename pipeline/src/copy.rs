@@ -1,6 +1,6 @@
 //! The benchmark's copy baseline: frames written by capture into one Unix
 //! stream socket per pixel-reading stage; a thread in the stage reads each
-//! frame into a buffer of its own (a ring of `frame_history` buffers,
+//! frame into a buffer of its own (a ring of `run.frame_history` buffers,
 //! reused), where the stage looks frame N up.
 
 use crate::PipelineConfig;
@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 /// The socket recognition receives its frame copies on.
 pub fn socket_path(cfg: &PipelineConfig) -> PathBuf {
-    std::env::temp_dir().join(format!("acch-{}-recognition.sock", cfg.instance))
+    std::env::temp_dir().join(format!("acch-{}-recognition.sock", cfg.run.instance))
 }
 
 /// A socket of the copy transport failed.

@@ -224,7 +224,7 @@ pub struct ResultJson<'a> {
     /// θ, φ degrees, when estimated.
     pub estimate_deg: Option<[f32; 2]>,
     /// The camera's roll about its optical axis, degrees, when estimated
-    /// (0 unless `roll_search_deg` > 0).
+    /// (0 unless `estimate.roll_search_deg` > 0).
     pub roll_deg: Option<f32>,
     /// The seed, when accepted.
     pub seed: Option<SeedJson<'a>>,
@@ -445,7 +445,7 @@ impl ZenohSink {
     pub fn open(cfg: &crate::PipelineConfig) -> Result<Self, crate::observe::ObserveError> {
         let session = acch_ipc::open_session(&cfg.zenoh.listen, &cfg.zenoh.connect)
             .map_err(acch_ipc::IpcError::from)?;
-        Self::on_session(session, cfg, &cfg.object, crate::ros2::Ros2Role::Only)
+        Self::on_session(session, cfg, &cfg.object.name, crate::ros2::Ros2Role::Only)
     }
 
     /// The sink of `object` on an open session (several objects share

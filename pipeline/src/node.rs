@@ -172,11 +172,15 @@ pub fn announce_ready(ipc: &Ipc, id: usize) -> Result<(), NodeError> {
 /// up a woken stage.
 fn place(cfg: &PipelineConfig, id: StageId) -> Result<(), NodeError> {
     cfg.pin_stage().map_err(|source| NodeError::Sched {
-        what: format!("stage_cpus = {}: pinning {}", cfg.stage_cpus, id.name()),
+        what: format!(
+            "run.stage_cpus = {}: pinning {}",
+            cfg.run.stage_cpus,
+            id.name()
+        ),
         source,
     })?;
-    if cfg.realtime_priority > 0 {
-        let p = cfg.realtime_priority + id as u8;
+    if cfg.run.realtime_priority > 0 {
+        let p = cfg.run.realtime_priority + id as u8;
         acch_ipc::sched::set_fifo(p).map_err(|source| NodeError::Sched {
             what: format!("{}: SCHED_FIFO priority {p}", id.name()),
             source,
@@ -197,18 +201,18 @@ pub fn run_stage<S: Stage>(
     let id = S::ID;
     place(cfg, id)?;
     let ipc = cfg.ipc(id.name())?;
-    let spec = streams::input_of(id, cfg.frame_history).expect("a processing stage");
+    let spec = streams::input_of(id, cfg.run.frame_history).expect("a processing stage");
     // The copy baseline: pixels arrive on recognition's socket; the frame
     // stream then only carries their headers and wake-ups.
     let mut copies = (cfg.copies_frames() && id == StageId::Recognition)
-        .then(|| copy::FrameReceiver::bind(&copy::socket_path(cfg), cfg.frame_history))
+        .then(|| copy::FrameReceiver::bind(&copy::socket_path(cfg), cfg.run.frame_history))
         .transpose()?;
     let input = ipc.input::<S::Input>(spec, Wake::Word)?;
     // A stage that reads the frame beside its input (pose) takes it from
     // the frame stream, in place: the frame of a result's sequence was
     // published before the result, so it is queued when the result comes.
     let frames = (S::READS_FRAME && id != StageId::Recognition)
-        .then(|| ipc.input::<FrameHeader>(streams::frames(cfg.frame_history), Wake::Never))
+        .then(|| ipc.input::<FrameHeader>(streams::frames(cfg.run.frame_history), Wake::Never))
         .transpose()?;
     let mut held: Option<acch_ipc::Received<FrameHeader>> = None;
     let output = ipc.output::<S::Output>(streams::results(id), stage.max_payload())?;
@@ -312,19 +316,19 @@ const IN_FLIGHT: u64 = 2;
 const RESULT_WAIT: Duration = Duration::from_secs(2);
 
 /// Runs the capture process: waits for the launcher's start signal, then
-/// writes `cfg.frames` frames into shared memory at `cfg.fps` (or a
-/// recording's pace) and stays until terminated (subscribers may still
+/// writes `camera.frames` frames into shared memory at `camera.fps` (or
+/// a recording's pace) and stays until terminated (subscribers may still
 /// hold its samples).
 pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let ipc = cfg.ipc("capture")?;
     let (w, h) = cfg.frame_size()?;
     let output = ipc.output::<FrameHeader>(
-        streams::frames(cfg.frame_history),
+        streams::frames(cfg.run.frame_history),
         3 * w as usize * h as usize,
     )?;
     let start = ipc.control_listener(START)?;
     let spec = cfg.source_spec()?;
-    let source = Source::open(&spec, (w, h), cfg.first_frame)?;
+    let source = Source::open(&spec, (w, h), cfg.camera.first_frame)?;
     let stop_source = source.stop_flag();
     let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     let pace = cfg.pace();
@@ -340,7 +344,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     // recorded again must lose nothing): it notifies "recorded" after each
     // result, with the sequence modulo acch_record::RECORDED_IDS as the
     // event id so notifications of different frames do not merge.
-    let recorded = (done.is_some() && cfg.record.is_some())
+    let recorded = (done.is_some() && cfg.observers.record.is_some())
         .then(|| ipc.control_listener(acch_record::RECORDED_EVENT))
         .transpose()?;
     // The source (rendering, decoding, reading) runs ahead on a thread of
@@ -349,7 +353,11 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     // stages' CPU, so the wake-up of recognition is a local one.
     let (frames_tx, frames_rx) = std::sync::mpsc::sync_channel::<Produced>(READ_AHEAD);
     let (recycle_tx, recycle_rx) = std::sync::mpsc::channel::<Pixels>();
-    let (first, frames, realtime) = (cfg.first_frame, cfg.frames, cfg.realtime_priority > 0);
+    let (first, frames, realtime) = (
+        cfg.camera.first_frame,
+        cfg.camera.frames,
+        cfg.run.realtime_priority > 0,
+    );
     let producer = std::thread::Builder::new()
         .name("capture-source".into())
         .spawn(move || produce(source, first, frames, realtime, &frames_tx, &recycle_rx))
@@ -374,12 +382,13 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     let t0 = Instant::now();
     // Frames sent, results seen (free replay). A restarted capture
     // continues where the run is (`first_frame`).
-    let mut i = cfg.first_frame;
-    let (mut finished, mut logged) = (cfg.first_frame, cfg.first_frame);
+    let mut i = cfg.camera.first_frame;
+    let (mut finished, mut logged) = (cfg.camera.first_frame, cfg.camera.first_frame);
     let mut first_recorded = None;
-    while ipc.keep_running() && (cfg.frames == 0 || i < cfg.frames) {
-        if cfg.fps > 0.0 && pace.is_none() {
-            let due = t0 + Duration::from_secs_f64((i - cfg.first_frame) as f64 / cfg.fps);
+    while ipc.keep_running() && (cfg.camera.frames == 0 || i < cfg.camera.frames) {
+        if cfg.camera.fps > 0.0 && pace.is_none() {
+            let due =
+                t0 + Duration::from_secs_f64((i - cfg.camera.first_frame) as f64 / cfg.camera.fps);
             sleep_until(due);
         }
         if let Some(d) = &done {
@@ -460,7 +469,7 @@ pub fn run_capture(cfg: &PipelineConfig) -> Result<(), NodeError> {
     // A source that fails (an unreadable image, a corrupt recording) ends
     // the stream; say why.
     let (skipped_size, camera) = ended?;
-    let sent = i - cfg.first_frame;
+    let sent = i - cfg.camera.first_frame;
     tracing::info!("capture: {sent} frames sent");
     write_counters(
         cfg,

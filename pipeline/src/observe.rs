@@ -246,10 +246,10 @@ impl PipelineConfig {
     /// The observer processes this run starts (viewer, recorder).
     pub fn observers(&self) -> Vec<Observer> {
         let mut v = Vec::new();
-        if self.rerun.is_some() {
+        if self.observers.rerun.is_some() {
             v.push(Observer::Viz);
         }
-        if self.record.is_some() {
+        if self.observers.record.is_some() {
             v.push(Observer::Record);
         }
         v

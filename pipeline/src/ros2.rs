@@ -360,7 +360,7 @@ impl Ros2Images {
                 .map_err(acch_ipc::IpcError::from)?;
             let frames = ipc
                 .input::<FrameHeader>(
-                    crate::streams::frames(cfg.frame_history),
+                    crate::streams::frames(cfg.run.frame_history),
                     acch_ipc::Wake::Never,
                 )
                 .map_err(acch_ipc::IpcError::from)?;

@@ -102,7 +102,7 @@ pub enum RunError {
     Interrupted,
     /// Several objects asked of the stage processes.
     #[error(
-        "objects = [{0}]: several objects run in one process only (acch run --in-process); \
+        "objects.list = [{0}]: several objects run in one process only (acch run --in-process); \
          the stage processes carry one object"
     )]
     SeveralObjects(String),
@@ -192,7 +192,7 @@ pub struct RunSummary {
     /// What each stage counted (a stage process writes them when it
     /// stops; a killed one leaves none).
     pub stage_counters: Vec<serde_json::Value>,
-    /// Where the processes ran (`stage_cpus`); null when not placed.
+    /// Where the processes ran (`run.stage_cpus`); null when not placed.
     pub placement: Option<acch_ipc::sched::Placement>,
     /// The CPU latency request held during the run, µs (null: none).
     pub cpu_latency_us: Option<u32>,
@@ -221,18 +221,20 @@ pub struct ObjectOutcomes {
 impl RunSummary {
     fn new(cfg: &PipelineConfig, mode: &'static str, got: &[Seeded], elapsed: f64) -> Self {
         let samples = Samples::of(got, mode == "processes");
-        let (w, h) = got.first().map_or((cfg.width, cfg.height), |m| {
-            (m.envelope().frame.width, m.envelope().frame.height)
-        });
+        let (w, h) = got
+            .first()
+            .map_or((cfg.camera.width, cfg.camera.height), |m| {
+                (m.envelope().frame.width, m.envelope().frame.height)
+            });
         let reads = |f: fn(&Seeded) -> u32| got.iter().map(|m| f(m) as u64).sum();
         RunSummary {
-            object: cfg.object.clone(),
-            source: cfg.source.clone(),
+            object: cfg.object.name.clone(),
+            source: cfg.camera.source.clone(),
             mode,
-            frames_requested: cfg.frames,
-            fps_target: cfg.fps,
+            frames_requested: cfg.camera.frames,
+            fps_target: cfg.camera.fps,
             fps_achieved: got.len() as f64 / elapsed.max(1e-9),
-            unrated: cfg.unrated,
+            unrated: cfg.estimate.unrated,
             outcomes: Outcomes::of(got),
             end_to_end: samples.end_to_end(),
             stages: samples.stages(),
@@ -240,13 +242,13 @@ impl RunSummary {
             frame_reads_in_place: reads(|m| m.envelope().reads.in_place),
             frame_bytes_published: 3 * w as u64 * h as u64 * got.len() as u64,
             transport: if mode == "processes" {
-                cfg.transport.to_string()
+                cfg.run.transport.to_string()
             } else {
                 mode.into()
             },
             width: w,
             height: h,
-            dropped: cfg.frames.saturating_sub(got.len() as u64),
+            dropped: cfg.camera.frames.saturating_sub(got.len() as u64),
             duplicates: 0,
             processes: Vec::new(),
             pids: Vec::new(),
@@ -257,7 +259,7 @@ impl RunSummary {
             rss_trend: Vec::new(),
             stage_counters: Vec::new(),
             placement: None,
-            cpu_latency_us: cfg.cpu_latency_us,
+            cpu_latency_us: cfg.run.cpu_latency_us,
             samples: None,
             objects: Vec::new(),
         }
@@ -312,11 +314,13 @@ impl LocalObservers {
     ) -> Result<Self, RunError> {
         Ok(LocalObservers {
             viewer: cfg
+                .observers
                 .rerun
                 .as_deref()
                 .map(|sink| Viewing::open(sink, views))
                 .transpose()?,
             recording: cfg
+                .observers
                 .record
                 .as_deref()
                 .map(|p| RunRecording::create(cfg, p, views.len()))
@@ -325,9 +329,9 @@ impl LocalObservers {
             results: opts
                 .results
                 .as_deref()
-                .map(|p| JsonLines::create(p, &cfg.object))
+                .map(|p| JsonLines::create(p, &cfg.object.name))
                 .transpose()?,
-            got: Collect(Vec::with_capacity(cfg.frames as usize)),
+            got: Collect(Vec::with_capacity(cfg.camera.frames as usize)),
         })
     }
 
@@ -368,7 +372,7 @@ impl LocalObservers {
 /// stage processes), over the configured source, with the configured
 /// observers.
 pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary, RunError> {
-    if !cfg.objects.is_empty() {
+    if !cfg.objects.list.is_empty() {
         return run_objects(cfg, opts);
     }
     cfg.validate()?;
@@ -376,10 +380,10 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     cfg.resolve_stream_size()?;
     let cfg = &cfg;
     cfg.pin_stage().map_err(|source| RunError::Sched {
-        what: format!("stage_cpus = {}", cfg.stage_cpus),
+        what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
         source,
     })?;
-    let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
+    let _cpu_latency = hold_cpu_latency(cfg.run.cpu_latency_us, "run.cpu_latency_us =")?;
     let db = cfg.database()?;
     cfg.warn_on_untrained_roll_search(&db);
     let settings = cfg.settings(&db)?;
@@ -397,7 +401,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     run_source(
         &mut chain,
         &mut source,
-        (cfg.frames, pacing),
+        (cfg.camera.frames, pacing),
         arm.as_ref(),
         &mut observers.each(),
     )?;
@@ -431,7 +435,7 @@ fn pacing(cfg: &PipelineConfig) -> Pacing {
         Some(Pace::Recorded) => Pacing::Recorded,
         // A camera blocks until its next frame: as fast as it delivers.
         Some(Pace::Free | Pace::Source) => Pacing::Free,
-        None => Pacing::Rate(cfg.fps),
+        None => Pacing::Rate(cfg.camera.fps),
     }
 }
 
@@ -470,13 +474,13 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
     let cfg = &cfg;
     // Pinned to one CPU the objects' chains would take turns: "auto"
     // leaves them every CPU (docs/multi.md).
-    if cfg.stage_cpus != StageCpus::Auto {
+    if cfg.run.stage_cpus != StageCpus::Auto {
         cfg.pin_stage().map_err(|source| RunError::Sched {
-            what: format!("stage_cpus = {}", cfg.stage_cpus),
+            what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
             source,
         })?;
     }
-    let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
+    let _cpu_latency = hold_cpu_latency(cfg.run.cpu_latency_us, "run.cpu_latency_us =")?;
     let dbs = cfg.object_databases()?;
     let lanes = dbs
         .iter()
@@ -484,8 +488,10 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
         .collect::<Result<Vec<_>, ConfigError>>()?;
     let (width, height) = lanes
         .first()
-        .map_or((cfg.width, cfg.height), |(_, s)| (s.width, s.height));
-    let threads = match cfg.object_threads {
+        .map_or((cfg.camera.width, cfg.camera.height), |(_, s)| {
+            (s.width, s.height)
+        });
+    let threads = match cfg.objects.threads {
         0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
         n => n,
     };
@@ -516,13 +522,13 @@ pub fn run_objects(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSummary
     }
     let pacing = pacing(cfg);
     let mut per_object: Vec<Vec<Seeded>> = vec![Vec::new(); names.len()];
-    let mut last_to_finish = Vec::with_capacity(cfg.frames as usize);
+    let mut last_to_finish = Vec::with_capacity(cfg.camera.frames as usize);
     let (cpu0, _) = self_usage();
     let t0 = Instant::now();
     let arm = crate::ros2::ArmFeed::open(&cfg.ros2, &cfg.zenoh).map_err(ObserveError::from)?;
     crate::chain::run_frames(
         &mut source,
-        (cfg.frames, pacing),
+        (cfg.camera.frames, pacing),
         arm.as_ref(),
         |frame, rgb| {
             if let Some(first) = sinks.first_mut() {
@@ -629,16 +635,16 @@ pub fn run_processes(
     opts: &RunOptions,
     spawn: impl Spawn,
 ) -> Result<RunSummary, RunError> {
-    cfg.instance = std::process::id().to_string();
-    cfg.first_frame = 0;
+    cfg.run.instance = std::process::id().to_string();
+    cfg.camera.first_frame = 0;
     cfg.validate()?;
-    if !cfg.objects.is_empty() {
-        return Err(RunError::SeveralObjects(cfg.objects.join(", ")));
+    if !cfg.objects.list.is_empty() {
+        return Err(RunError::SeveralObjects(cfg.objects.list.join(", ")));
     }
     // A camera's size is learnt once, here; every process reads it.
     cfg.resolve_stream_size()?;
     // The stages' wake-up files go with the run, however it ends.
-    let _wake_files = acch_ipc::wake::RunFiles::new(&cfg.instance);
+    let _wake_files = acch_ipc::wake::RunFiles::new(&cfg.run.instance);
     // One clear error here rather than one from every stage process.
     let db = cfg.database()?;
     cfg.warn_on_untrained_roll_search(&db);
@@ -649,31 +655,31 @@ pub fn run_processes(
     if stale > 0 {
         tracing::info!("removed the stale resources of {stale} dead iceoryx2 nodes");
     }
-    if cfg.realtime_priority > 0 {
+    if cfg.run.realtime_priority > 0 {
         // Set here, before any stage starts: every child inherits it.
-        acch_ipc::sched::set_fifo(cfg.realtime_priority).map_err(|source| RunError::Sched {
+        acch_ipc::sched::set_fifo(cfg.run.realtime_priority).map_err(|source| RunError::Sched {
             what: format!(
-                "realtime_priority = {}: SCHED_FIFO needs CAP_SYS_NICE or an rtprio limit \
+                "run.realtime_priority = {}: SCHED_FIFO needs CAP_SYS_NICE or an rtprio limit \
                  (ulimit -r); run without it",
-                cfg.realtime_priority
+                cfg.run.realtime_priority
             ),
             source,
         })?;
     }
     // Held by the launcher for the whole run: the kernel drops it when the
     // launcher exits, however it exits.
-    let _cpu_latency = hold_cpu_latency(cfg.cpu_latency_us, "cpu_latency_us =")?;
+    let _cpu_latency = hold_cpu_latency(cfg.run.cpu_latency_us, "run.cpu_latency_us =")?;
     // Before any child starts: capture and the observers inherit the
     // launcher's CPUs; the stages move themselves to theirs.
     let placement = cfg.place_run().map_err(|source| RunError::Sched {
-        what: format!("stage_cpus = {}", cfg.stage_cpus),
+        what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
         source,
     })?;
     if let Some(p) = &placement {
         tracing::info!("stages on CPUs {:?}, the rest on {:?}", p.stages, p.others);
     }
     let tmp = std::env::temp_dir();
-    let config_path = tmp.join(format!("acch-run-{}.toml", cfg.instance));
+    let config_path = tmp.join(format!("acch-run-{}.toml", cfg.run.instance));
     cfg.save(&config_path)?;
     let _config_guard = RemoveOnDrop(config_path.clone());
     let mut restart_configs: Vec<RemoveOnDrop> = Vec::new();
@@ -688,7 +694,7 @@ pub fn run_processes(
     let mut results_file = opts
         .results
         .as_deref()
-        .map(|p| JsonLines::create(p, &cfg.object))
+        .map(|p| JsonLines::create(p, &cfg.object.name))
         .transpose()?;
     let mut sup = Supervisor::new(spawn, RestartPolicy::default());
     let observers = cfg.observers();
@@ -714,11 +720,11 @@ pub fn run_processes(
     eprintln!(
         "acch run: {} stages connected (instance {}), streaming {} frames of {} at {}",
         STAGES,
-        cfg.instance,
-        cfg.frames,
-        cfg.object,
-        if cfg.fps > 0.0 {
-            format!("{} fps", cfg.fps)
+        cfg.run.instance,
+        cfg.camera.frames,
+        cfg.object.name,
+        if cfg.camera.fps > 0.0 {
+            format!("{} fps", cfg.camera.fps)
         } else {
             "free-running".into()
         }
@@ -726,7 +732,7 @@ pub fn run_processes(
     start.notify(0)?;
     sup.mark_start();
     let t0 = Instant::now();
-    let mut got: Vec<Seeded> = Vec::with_capacity(cfg.frames as usize);
+    let mut got: Vec<Seeded> = Vec::with_capacity(cfg.camera.frames as usize);
     let mut last = Instant::now();
     let mut next_rss = t0;
     let mut rss: Vec<RssSample> = Vec::new();
@@ -737,7 +743,7 @@ pub fn run_processes(
     let mut stale_during_run = 0usize;
     // A restarted capture waits for `start` again once it is connected.
     let mut capture_restarted = false;
-    while cfg.frames == 0 || (got.len() as u64) < cfg.frames {
+    while cfg.camera.frames == 0 || (got.len() as u64) < cfg.camera.frames {
         if !ipc.keep_running() {
             interrupted = true;
             break;
@@ -753,15 +759,13 @@ pub fn run_processes(
                 }
                 // A camera does not wait: continue at the frame due now,
                 // past every frame the old capture may have sent.
-                let next = resume_sequence(cfg.fps, t0.elapsed(), last_seq);
-                if cfg.frames > 0 && next >= cfg.frames {
+                let next = resume_sequence(cfg.camera.fps, t0.elapsed(), last_seq);
+                if cfg.camera.frames > 0 && next >= cfg.camera.frames {
                     return None;
                 }
-                let c = PipelineConfig {
-                    first_frame: next,
-                    ..cfg.clone()
-                };
-                let path = tmp.join(format!("acch-run-{}-capture-{next}.toml", cfg.instance));
+                let mut c = cfg.clone();
+                c.camera.first_frame = next;
+                let path = tmp.join(format!("acch-run-{}-capture-{next}.toml", cfg.run.instance));
                 c.save(&path).ok()?;
                 restart_configs.push(RemoveOnDrop(path.clone()));
                 Some((path, Some(next)))
@@ -808,8 +812,8 @@ pub fn run_processes(
             got.push(m);
         }
         if let Some(l) = last_seq
-            && cfg.frames > 0
-            && l + 1 >= cfg.frames
+            && cfg.camera.frames > 0
+            && l + 1 >= cfg.camera.frames
         {
             // The last frame is through: anything missing was dropped.
             break;

@@ -298,20 +298,17 @@ fn a_stage_process_loop_allocates_only_iceoryx2s_loan_once_warm() {
         frames[0].0.envelope.frame.width,
         frames[0].0.envelope.frame.height,
     );
-    let cfg = PipelineConfig {
-        instance: format!("noalloc-{}", std::process::id()),
-        db: Some(db_path),
-        width: w,
-        height: h,
-        stage_cpus: acch_ipc::sched::StageCpus::Free,
-        ..Default::default()
-    };
-    let _wake = acch_ipc::wake::RunFiles::new(&cfg.instance);
+    let mut cfg = PipelineConfig::default();
+    cfg.run.instance = format!("noalloc-{}", std::process::id());
+    cfg.run.stage_cpus = acch_ipc::sched::StageCpus::Free;
+    cfg.object.db = Some(db_path);
+    (cfg.camera.width, cfg.camera.height) = (w, h);
+    let _wake = acch_ipc::wake::RunFiles::new(&cfg.run.instance);
     let ipc = cfg.ipc("test").unwrap();
     let ready = ipc.control_listener(acch_pipeline::node::READY).unwrap();
     let output = ipc
         .output::<FrameHeader>(
-            acch_pipeline::streams::frames(cfg.frame_history),
+            acch_pipeline::streams::frames(cfg.run.frame_history),
             3 * (w * h) as usize,
         )
         .unwrap();

@@ -192,102 +192,103 @@ impl RunArgs {
             None => PipelineConfig::default(),
         };
         macro_rules! set {
-            ($($flag:ident => $key:ident),*) => {
-                $(if let Some(v) = &self.$flag { cfg.$key = v.clone().into(); })*
+            ($($flag:ident => $($key:ident).+),*) => {
+                $(if let Some(v) = &self.$flag { cfg.$($key).+ = v.clone().into(); })*
             };
         }
-        set!(frames => frames, fps => fps, seed => seed, transport => transport,
-             source => source, replay => replay, rt_priority => realtime_priority,
-             stage_cpus => stage_cpus, record_format => record_format,
-             background => background, smoothing => smoothing);
+        set!(frames => camera.frames, fps => camera.fps, source => camera.source,
+             replay => camera.replay, seed => synthetic.seed, background => synthetic.background,
+             smoothing => estimate.smoothing, transport => run.transport,
+             rt_priority => run.realtime_priority, stage_cpus => run.stage_cpus,
+             record_format => observers.record_format);
         cfg.ros2.enabled |= self.ros2;
         if let Some(e) = self.elevation {
-            cfg.elevation_deg = e;
+            cfg.synthetic.elevation_deg = e;
         }
         if let Some((w, h)) = self.resolution {
-            (cfg.width, cfg.height) = (w, h);
+            (cfg.camera.width, cfg.camera.height) = (w, h);
         }
         if self.cpu_latency_us.is_some() {
-            cfg.cpu_latency_us = self.cpu_latency_us;
+            cfg.run.cpu_latency_us = self.cpu_latency_us;
         }
         if self.rerun.is_some() {
-            cfg.rerun.clone_from(&self.rerun);
+            cfg.observers.rerun.clone_from(&self.rerun);
         }
         if self.record.is_some() {
-            cfg.record.clone_from(&self.record);
+            cfg.observers.record.clone_from(&self.record);
         }
         if self.db.is_some() {
-            cfg.db.clone_from(&self.db);
-            cfg.smoothed_db.clone_from(&self.smoothed_db);
+            cfg.object.db.clone_from(&self.db);
+            cfg.object.smoothed_db.clone_from(&self.smoothed_db);
         }
         if self.camera_info.is_some() {
-            cfg.camera_info.clone_from(&self.camera_info);
+            cfg.camera.camera_info.clone_from(&self.camera_info);
         }
         if let Some(name) = &self.object.object {
-            cfg.object.clone_from(name);
+            cfg.object.name.clone_from(name);
         }
         if let Some(mesh) = &self.object.mesh {
-            cfg.mesh = Some(mesh.clone());
+            cfg.object.mesh = Some(mesh.clone());
             if let Some(up) = self.object.mesh_up {
-                cfg.mesh_up = up;
+                cfg.object.mesh_up = up;
             }
-            cfg.mesh_unit_m = self.object.mesh_unit_m;
+            cfg.object.mesh_unit_m = self.object.mesh_unit_m;
         }
         if let Some(r) = self.object.object_radius_m {
-            cfg.object_radius_m = Some(r);
+            cfg.object.radius_m = Some(r);
         }
-        cfg.unrated |= self.unrated;
+        cfg.estimate.unrated |= self.unrated;
         // A replay runs the whole recording unless told otherwise.
-        if let Some(path) = cfg.source.strip_prefix("mcap:")
+        if let Some(path) = cfg.camera.source.strip_prefix("mcap:")
             && self.frames.is_none()
         {
-            cfg.frames = acch_record::scan(Path::new(path))
+            cfg.camera.frames = acch_record::scan(Path::new(path))
                 .with_context(|| format!("reading the recording {path}"))?
                 .frames;
         }
         // A mesh's object goes by its own name in results and topics.
-        if cfg.mesh.is_some() {
-            cfg.object = cfg
+        if cfg.object.mesh.is_some() {
+            cfg.object.name = cfg
                 .scene_object()
                 .context("invalid pipeline configuration")?
                 .name()
                 .to_owned();
         }
         if let Some(list) = &self.objects {
-            cfg.objects = expand_objects(list, cfg.seed)?;
-            cfg.object_dbs.clear();
+            cfg.objects.list = expand_objects(list, cfg.synthetic.seed)?;
+            cfg.objects.dbs.clear();
         }
         if let Some(n) = self.objects_in_view {
-            cfg.objects_in_view = n;
+            cfg.objects.in_view = n;
         }
         if let Some(k) = self.light_directions {
-            cfg.light_directions = k;
+            cfg.estimate.light_directions = k;
         }
-        cfg.confidence_imaging |= self.confidence_imaging;
+        cfg.estimate.confidence_imaging |= self.confidence_imaging;
         cfg.validate().context("invalid pipeline configuration")?;
-        if !cfg.objects.is_empty() {
-            if cfg.object_dbs.is_empty() {
-                cfg.object_dbs = self.object_databases(&cfg)?;
+        if !cfg.objects.list.is_empty() {
+            if cfg.objects.dbs.is_empty() {
+                cfg.objects.dbs = self.object_databases(&cfg)?;
             }
             return Ok(cfg);
         }
-        if cfg.db.is_none() {
+        if cfg.object.db.is_none() {
             let object = std::sync::Arc::new(cfg.scene_object()?);
-            let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
+            let cache = self.cache_dir.clone().or(cfg.object.cache_dir.clone());
             let recipe = acch_train::cache::Recipe {
-                light_directions: cfg.light_directions,
+                light_directions: cfg.estimate.light_directions,
                 smoothing: cfg.smoothing(),
-                imaging: cfg.confidence_imaging,
+                imaging: cfg.estimate.confidence_imaging,
                 ..Default::default()
             };
             let (_, path) =
                 acch_train::cache::cached_recipe_database(&object, cache.clone(), recipe)?;
-            cfg.db = Some(path);
-            if cfg.smoothing == SmoothingChoice::ByFrame {
+            cfg.object.db = Some(path);
+            if cfg.estimate.smoothing == SmoothingChoice::ByFrame {
                 let smoothed = recipe.smoothed_set();
                 let (_, path) =
                     acch_train::cache::cached_recipe_database(&object, cache, smoothed)?;
-                cfg.smoothed_db = Some(path);
+                cfg.object.smoothed_db = Some(path);
             }
         }
         Ok(cfg)
@@ -295,23 +296,23 @@ impl RunArgs {
 }
 
 impl RunArgs {
-    /// The database of every entry of `objects`: a database file as it
+    /// The database of every entry of `objects.list`: a database file as it
     /// is; for a built-in object or a mesh the cached one trained for the
     /// roll search objects off the optical axis need (on first use).
     fn object_databases(&self, cfg: &PipelineConfig) -> Result<Vec<PathBuf>> {
-        let up = cfg.mesh_up;
-        let cache = self.cache_dir.clone().or(cfg.cache_dir.clone());
+        let up = cfg.object.mesh_up;
+        let cache = self.cache_dir.clone().or(cfg.object.cache_dir.clone());
         cfg.object_entries()
             .into_iter()
             .map(|entry| match entry {
                 ObjectEntry::Database(path) => Ok(path),
                 other => {
-                    let object = std::sync::Arc::new(other.object(up, cfg.mesh_unit_m)?);
+                    let object = std::sync::Arc::new(other.object(up, cfg.object.mesh_unit_m)?);
                     let recipe = acch_train::cache::Recipe {
                         roll_search_deg: acch_train::cache::OFF_AXIS_ROLL_SEARCH_DEG,
-                        light_directions: cfg.light_directions,
+                        light_directions: cfg.estimate.light_directions,
                         smoothing: cfg.smoothing(),
-                        imaging: cfg.confidence_imaging,
+                        imaging: cfg.estimate.confidence_imaging,
                         ..Default::default()
                     };
                     Ok(
@@ -378,20 +379,21 @@ pub fn run(args: RunArgs) -> Result<()> {
         results: args.results.clone(),
         zenoh: true,
     };
-    if cfg.unrated {
+    if cfg.estimate.unrated {
         eprintln!(
             "acch run: UNRATED: the run rates no estimate, so none is accepted and no seed is published"
         );
     }
     // Which recipe a run uses shows in its databases' names.
-    let single = cfg.db.iter().filter(|_| cfg.objects.is_empty());
-    for db in single.chain(&cfg.object_dbs) {
+    let single = cfg.object.db.iter().filter(|_| cfg.objects.list.is_empty());
+    for db in single.chain(&cfg.objects.dbs) {
         eprintln!("acch run: view database {}", db.display());
     }
     if let Some(db) = cfg
+        .object
         .smoothed_db
         .as_ref()
-        .filter(|_| cfg.smoothing == SmoothingChoice::ByFrame)
+        .filter(|_| cfg.estimate.smoothing == SmoothingChoice::ByFrame)
     {
         eprintln!(
             "acch run: smoothed view database for noisy, compressed or blurred frames {}",
@@ -399,20 +401,20 @@ pub fn run(args: RunArgs) -> Result<()> {
         );
     }
     // The stage processes carry one object: several run in one process.
-    let summary = if args.in_process || !cfg.objects.is_empty() {
-        let what = if cfg.objects.is_empty() {
-            cfg.object.clone()
+    let summary = if args.in_process || !cfg.objects.list.is_empty() {
+        let what = if cfg.objects.list.is_empty() {
+            cfg.object.name.clone()
         } else {
-            cfg.objects.join(", ")
+            cfg.objects.list.join(", ")
         };
-        let how = if args.in_process || cfg.objects.is_empty() {
+        let how = if args.in_process || cfg.objects.list.is_empty() {
             ""
         } else {
             " (several objects run as lanes on threads of one process; the stage processes carry one object)"
         };
         eprintln!(
             "acch run: {} frames of {what} in one process{how}",
-            cfg.frames
+            cfg.camera.frames
         );
         acch_pipeline::run_in_process(&cfg, &opts)?
     } else {

@@ -278,15 +278,15 @@ enum Format {
 
 impl RunRecording {
     /// Creates `path` for `cfg`'s run over a database of `views` views: an
-    /// MCAP file, or with `record_format = "ros2"` a bag directory.
+    /// MCAP file, or with `observers.record_format = "ros2"` a bag directory.
     pub fn create(cfg: &PipelineConfig, path: &Path, views: usize) -> Result<Self, ObserveError> {
-        let format = if cfg.record_format == crate::config::RecordFormat::Ros2 {
+        let format = if cfg.observers.record_format == crate::config::RecordFormat::Ros2 {
             let dir = crate::ros2::bag_dir(path);
-            let bag = crate::ros2::Ros2Bag::create(&dir, &cfg.ros2, &cfg.object)?;
+            let bag = crate::ros2::Ros2Bag::create(&dir, &cfg.ros2, &cfg.object.name)?;
             tracing::info!("record: a rosbag2 bag in {}", dir.display());
             Format::Ros2(Box::new(bag))
         } else {
-            let mut r = Recording::create(path, &cfg.object, views)?;
+            let mut r = Recording::create(path, &cfg.object.name, views)?;
             // The views' θ mark the slices of each recorded response; the
             // database was read to start the run, so this read succeeds
             // unless the file changed since (then the marks are left out).
@@ -374,17 +374,18 @@ impl Observe for RunRecording {
 /// completes the file and prints its counts.
 pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
     let path = cfg
+        .observers
         .record
         .clone()
         .ok_or(crate::config::ConfigError::Invalid {
-            key: "record",
+            key: "observers.record",
             value: String::new(),
             why: "the record process needs a file",
         })?;
     lower_priority(Observer::Record);
     let views = cfg.database()?.views().len();
     let ipc = cfg.ipc("record")?;
-    let mut streams = Streams::open(&ipc, cfg.frame_history)?;
+    let mut streams = Streams::open(&ipc, cfg.run.frame_history)?;
     let mut out = RunRecording::create(cfg, &path, views)?;
     out.recorded = Some(ipc.control_notifier(acch_record::RECORDED_EVENT)?);
     announce_ready(&ipc, Observer::Record.ready_id())?;
@@ -408,7 +409,8 @@ pub fn run_record(cfg: &PipelineConfig) -> Result<RecordSummary, NodeError> {
 /// The configured object's size: its real radius, or the built-in
 /// object's (a mesh is loaded to measure it).
 pub(crate) fn object_size(cfg: &PipelineConfig) -> ObjectSize {
-    cfg.object_radius_m
+    cfg.object
+        .radius_m
         .or_else(|| cfg.scene_object().ok().map(|o| o.radius_m()))
         .map_or(ObjectSize::FromDistance, ObjectSize::RadiusM)
 }

@@ -363,17 +363,18 @@ pub struct ViewerThread {
 /// flushes the sink and prints its counts.
 pub fn run_viz(cfg: &PipelineConfig) -> Result<VizSummary, NodeError> {
     let sink_arg = cfg
+        .observers
         .rerun
         .clone()
         .ok_or(crate::config::ConfigError::Invalid {
-            key: "rerun",
+            key: "observers.rerun",
             value: String::new(),
             why: "the viz process needs a rerun sink",
         })?;
     lower_priority(Observer::Viz);
     let views = super::view_angles(&cfg.database()?);
     let ipc = cfg.ipc("viz")?;
-    let mut streams = Streams::open(&ipc, cfg.frame_history)?;
+    let mut streams = Streams::open(&ipc, cfg.run.frame_history)?;
     // The configured object's real radius sizes its box and axes.
     let size = super::record::object_size(cfg);
     let (mut out, thread) = Viewing::open_sized(&sink_arg, &views, size)?;
