@@ -60,6 +60,19 @@ pub fn set_normal() -> io::Result<()> {
     }
 }
 
+/// Puts the calling thread under SCHED_IDLE: it runs only when nothing
+/// else on its CPU wants to (the synthetic camera's rendering, which
+/// stands in for a camera's own hardware). Needs no privilege.
+pub fn set_idle() -> io::Result<()> {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: sched_setscheduler on our own thread (0) with a valid param.
+    if unsafe { libc::sched_setscheduler(0, libc::SCHED_IDLE, &param) } == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
 /// The CPUs the calling thread may run on, ascending.
 pub fn allowed_cpus() -> io::Result<Vec<usize>> {
     // SAFETY: cpu_set_t is plain data; all-zero is the empty set.

@@ -1094,6 +1094,30 @@ impl PipelineConfig {
         Ok(Some(cpus))
     }
 
+    /// The CPUs for the thread that shares the pose stage's shape fits
+    /// ([`crate::stages::fit_helper`]), asked before the calling thread is
+    /// pinned: those it may use beside the stages' when the stages are
+    /// placed, all of them otherwise; `None` when no CPU is left beside
+    /// the stages' (the helper would only take turns with the stage).
+    pub fn fit_helper_cpus(&self) -> std::io::Result<Option<Vec<usize>>> {
+        let allowed = sched::allowed_cpus()?;
+        let stages = match &self.run.stage_cpus {
+            StageCpus::Free => return Ok((allowed.len() >= 2).then_some(allowed)),
+            StageCpus::List(cpus) => cpus.clone(),
+            auto @ StageCpus::Auto => {
+                match auto.resolve(&allowed).map_err(std::io::Error::other)? {
+                    Some(p) => p.stages,
+                    None => return Ok(None),
+                }
+            }
+        };
+        let others: Vec<usize> = allowed
+            .into_iter()
+            .filter(|c| !stages.contains(c))
+            .collect();
+        Ok((!others.is_empty()).then_some(others))
+    }
+
     /// Reads the configured database.
     pub fn database(&self) -> Result<ViewDatabase, ConfigError> {
         let path = self.object.db.as_ref().ok_or(ConfigError::NoDatabase)?;

@@ -500,11 +500,20 @@ fn produce(
     out: &std::sync::mpsc::SyncSender<Produced>,
     recycle: &std::sync::mpsc::Receiver<Pixels>,
 ) -> Result<(u64, CameraCounters), SourceError> {
-    if realtime {
-        // Rendering is the camera's work, not the real-time path.
+    if realtime && !source.renders() {
+        // Reading the camera is not the real-time path.
         if let Err(e) = acch_ipc::sched::set_normal() {
             tracing::warn!("capture source: could not leave SCHED_FIFO: {e}");
         }
+    }
+    // A real camera exposes and reads out in its own hardware; the
+    // synthetic camera's rendering stands in for that and renders the next
+    // frame while the stages work on this one. It yields to them, and to
+    // the pose stage's fit helper beside them (pipeline/src/stages/pose.rs).
+    if source.renders()
+        && let Err(e) = acch_ipc::sched::set_idle()
+    {
+        tracing::warn!("capture source: rendering not moved to SCHED_IDLE: {e}");
     }
     let mut i = first;
     while frames == 0 || i < frames {

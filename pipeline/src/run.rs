@@ -379,6 +379,11 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let mut cfg = cfg.clone();
     cfg.resolve_stream_size()?;
     let cfg = &cfg;
+    // Before the pinning below narrows what this thread may use.
+    let helper_cpus = cfg.fit_helper_cpus().map_err(|source| RunError::Sched {
+        what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
+        source,
+    })?;
     cfg.pin_stage().map_err(|source| RunError::Sched {
         what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
         source,
@@ -389,6 +394,12 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let settings = cfg.settings(&db)?;
     let smoothed = cfg.smoothed_database()?;
     let mut chain = Chain::build_for_sets(&db, smoothed.as_ref(), &settings)?;
+    if let Some(cpus) = helper_cpus {
+        let helper = crate::stages::fit_helper(cpus)?;
+        for pose in chain.stages_mut().pose.each_mut() {
+            pose.share_fits_with(&helper);
+        }
+    }
     let views = crate::observers::view_angles(&db);
     drop((db, smoothed));
     let spec = cfg.source_spec()?;
@@ -929,7 +940,24 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
     match id {
         StageId::Recognition => run_stage(&cfg, by_set(sets, Recognition::new)?, none),
         StageId::Segmentation => run_stage(&cfg, by_set(sets, Segmentation::new)?, none),
-        StageId::Pose => run_stage(&cfg, by_set(sets, Pose::new)?, none),
+        StageId::Pose => {
+            let mut pose = by_set(sets, Pose::new)?;
+            // run_stage pins this process to the stages' CPUs; the helper
+            // goes beside them.
+            if let Some(cpus) = cfg.fit_helper_cpus().map_err(|source| NodeError::Sched {
+                what: format!(
+                    "run.stage_cpus = {}: the pose's fit helper",
+                    cfg.run.stage_cpus
+                ),
+                source,
+            })? {
+                let helper = crate::stages::fit_helper(cpus)?;
+                for p in pose.each_mut() {
+                    p.share_fits_with(&helper);
+                }
+            }
+            run_stage(&cfg, pose, none)
+        }
         StageId::Confidence => run_stage(&cfg, by_set(sets, Confidence::new)?, none),
         StageId::Seeding => {
             let stage = Seeding::new(&db, &settings)?;

@@ -417,6 +417,11 @@ pub struct Source {
 }
 
 impl Source {
+    /// Whether the frames are rendered (the synthetic camera), not read.
+    pub fn renders(&self) -> bool {
+        matches!(self.kind, Kind::Synthetic { .. } | Kind::Group { .. })
+    }
+
     /// Opens `spec` for a stream of `size`, starting at frame `first` (a
     /// restarted capture continues where the run is). A recording is read
     /// through once first (every CRC): a truncated or corrupt file fails

@@ -14,6 +14,7 @@ use acch_core::{IndexImage, Rect, ViewDatabase};
 use acch_ipc::ZeroCopySend;
 use acch_pose::{PoseEstimator, Refinement};
 use acch_shape::{Image, Proposal, Region, ShapeEstimate, ShapeEstimator, ShapeSettings};
+use std::sync::Arc;
 
 /// A 2-DOF pose estimate.
 #[repr(C)]
@@ -170,6 +171,26 @@ pub struct Pose {
     refinement: Refinement,
 }
 
+/// A thread on `cpus` for the pose stage's shape fits
+/// ([`Pose::share_fits_with`]): the fits of a frame are a third of the
+/// pipeline's work and independent of each other; on the 2-CPU bench
+/// machine, in one process, a second CPU took the pose stage from
+/// 8.6-8.7 to 7.0-7.5 ms p50 and 12.2-12.7 to 9.6-10.1 ms p99
+/// (docs/latency.md, "Now").
+pub fn fit_helper(cpus: Vec<usize>) -> Result<Arc<rayon::ThreadPool>, BuildError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .thread_name(|_| "acch-fit-helper".to_owned())
+        .start_handler(move |_| {
+            if let Err(e) = acch_ipc::sched::pin_to(&cpus) {
+                tracing::warn!("the shape fits' helper not pinned to CPUs {cpus:?}: {e}");
+            }
+        })
+        .build()
+        .map(Arc::new)
+        .map_err(|e| BuildError::Threads(e.to_string()))
+}
+
 impl Pose {
     /// The stage for `db` on frames of `settings`.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
@@ -201,6 +222,7 @@ impl Pose {
             Ok(None) => None,
             Err(e) => return Err(BuildError::Shape(e)),
         };
+
         Ok(Pose {
             scale: settings.scale(db),
             estimator,
@@ -214,6 +236,14 @@ impl Pose {
             index: IndexImage::new(w, h, vec![0; w as usize * h as usize]),
             refinement: Refinement::Parabolic,
         })
+    }
+
+    /// Shares the shape's fits with `helper`'s thread ([`fit_helper`]);
+    /// the estimates stay the same bit for bit.
+    pub fn share_fits_with(&mut self, helper: &Arc<rayon::ThreadPool>) {
+        if let Some(shape) = &mut self.shape {
+            shape.share_fits_with(Arc::clone(helper));
+        }
     }
 
     /// The stage refining the best view by `refinement` instead (the
@@ -304,7 +334,8 @@ impl Pose {
             }
             COLOUR_WEIGHT * trust * r[nearest.1] / best
         };
-        let colour_fn: Option<&dyn Fn(f64, f64) -> f32> = response.map(|_| &colour_of as _);
+        let colour_fn: Option<&(dyn Fn(f64, f64) -> f32 + Sync)> =
+            response.map(|_| &colour_of as _);
         let proposal = Proposal {
             views: &proposed,
             // Trusted colours place the object: the shape verifies them.

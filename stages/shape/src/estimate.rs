@@ -16,6 +16,8 @@ use crate::symmetry::Symmetry;
 use crate::verify::{Evidence, evidence};
 use acch_capture::Intrinsics;
 use glam::DAffine3;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// How the shape estimate is made.
 #[derive(Clone, Debug, PartialEq)]
@@ -138,7 +140,57 @@ struct Frame<'a> {
     image: &'a Image<'a>,
     k: &'a Intrinsics,
     region: &'a Region<'a>,
-    colour: Option<&'a dyn Fn(f64, f64) -> f32>,
+    colour: Option<&'a (dyn Fn(f64, f64) -> f32 + Sync)>,
+}
+
+/// What every fit of a frame reads, shared by the threads that fit.
+struct Fitter<'a> {
+    model: &'a ShapeModel,
+    settings: &'a ShapeSettings,
+    edges: &'a Edges,
+    frame: &'a Frame<'a>,
+}
+
+impl Fitter<'_> {
+    /// `start` fitted (by the short schedule when `quick`: a challenger
+    /// starts at a whole pose, not a grid step away) and measured.
+    fn fit(&self, start: &DAffine3, quick: bool, lines: &mut LineScratch) -> Scored {
+        let frame = self.frame;
+        let params = if quick {
+            &self.settings.challenger_lines
+        } else {
+            &self.settings.lines
+        };
+        let f = fit_lines(
+            self.model,
+            frame.image,
+            frame.k,
+            Some(frame.region),
+            start,
+            params,
+            lines,
+        );
+        let mut evidence = evidence(
+            self.model,
+            f.view,
+            &f.pose,
+            f.separation,
+            frame.image,
+            self.edges,
+            frame.k,
+            frame.region,
+        );
+        if let Some(colour) = frame.colour {
+            let v = view_of(&f.pose);
+            evidence.histograms = colour(v.theta_deg, v.phi_deg);
+        }
+        Scored {
+            pose: f.pose,
+            view: f.view,
+            score: rank_score(&evidence),
+            evidence,
+        }
+    }
 }
 
 /// The pose from an object's shape.
@@ -149,6 +201,9 @@ pub struct ShapeEstimator {
     settings: ShapeSettings,
     edges: Edges,
     lines: LineScratch,
+    /// A thread that shares the fits ([`ShapeEstimator::share_fits_with`]),
+    /// and its buffers.
+    helper: Option<(Arc<rayon::ThreadPool>, LineScratch)>,
 }
 
 impl ShapeEstimator {
@@ -160,7 +215,15 @@ impl ShapeEstimator {
             settings,
             edges: Edges::default(),
             lines: LineScratch::default(),
+            helper: None,
         }
+    }
+
+    /// Shares every batch of fits with `pool`'s first thread: the calling
+    /// thread and it take the next fit in turn until none is left. The
+    /// fits are independent, so the estimate is the same bit for bit.
+    pub fn share_fits_with(&mut self, pool: Arc<rayon::ThreadPool>) {
+        self.helper = Some((pool, LineScratch::default()));
     }
 
     /// The model.
@@ -185,48 +248,45 @@ impl ShapeEstimator {
         })
     }
 
-    /// `start` fitted and measured.
-    fn fitted(&mut self, start: &DAffine3, frame: &Frame) -> Scored {
-        self.fitted_by(start, frame, false)
+    /// Each of `starts` fitted (by the short schedule when `quick`) and
+    /// measured, in order; shared with the helper thread when there is one.
+    fn fitted_all(&mut self, starts: &[DAffine3], quick: bool, frame: &Frame) -> Vec<Scored> {
+        let fitter = Fitter {
+            model: &self.model,
+            settings: &self.settings,
+            edges: &self.edges,
+            frame,
+        };
+        let lines = &mut self.lines;
+        let Some((pool, helper_lines)) = self.helper.as_mut().filter(|_| starts.len() >= 2) else {
+            return starts.iter().map(|s| fitter.fit(s, quick, lines)).collect();
+        };
+        // Whoever is free takes the next start: a helper the scheduler
+        // holds back costs at most the one fit it has taken.
+        let next = AtomicUsize::new(0);
+        let take = |lines: &mut LineScratch| {
+            let mut done = Vec::new();
+            loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(start) = starts.get(i) else {
+                    return done;
+                };
+                done.push((i, fitter.fit(start, quick, lines)));
+            }
+        };
+        let mut theirs = Vec::new();
+        let mut done = pool.in_place_scope(|scope| {
+            scope.spawn(|_| theirs = take(helper_lines));
+            take(lines)
+        });
+        done.append(&mut theirs);
+        done.sort_by_key(|&(i, _)| i);
+        done.into_iter().map(|(_, s)| s).collect()
     }
 
-    /// `start` fitted (by the short schedule when `quick`: a challenger
-    /// starts at a whole pose, not a grid step away) and measured.
-    fn fitted_by(&mut self, start: &DAffine3, frame: &Frame, quick: bool) -> Scored {
-        let lines = if quick {
-            &self.settings.challenger_lines
-        } else {
-            &self.settings.lines
-        };
-        let f = fit_lines(
-            &self.model,
-            frame.image,
-            frame.k,
-            Some(frame.region),
-            start,
-            lines,
-            &mut self.lines,
-        );
-        let mut evidence = evidence(
-            &self.model,
-            f.view,
-            &f.pose,
-            f.separation,
-            frame.image,
-            &self.edges,
-            frame.k,
-            frame.region,
-        );
-        if let Some(colour) = frame.colour {
-            let v = view_of(&f.pose);
-            evidence.histograms = colour(v.theta_deg, v.phi_deg);
-        }
-        Scored {
-            pose: f.pose,
-            view: f.view,
-            score: rank_score(&evidence),
-            evidence,
-        }
+    /// `start` fitted and measured.
+    fn fitted(&mut self, start: &DAffine3, frame: &Frame) -> Scored {
+        self.fitted_all(std::slice::from_ref(start), false, frame)[0]
     }
 
     /// The best of `start` and the poses tilted from it by
@@ -234,12 +294,16 @@ impl ShapeEstimator {
     /// vertical axes, each fitted and measured.
     fn polish(&mut self, start: &Scored, frame: &Frame) -> Scored {
         let d = self.settings.polish_deg.to_radians();
+        let tilted: Vec<DAffine3> = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)]
+            .iter()
+            .map(|&(ax, ay)| {
+                let turn =
+                    glam::DMat3::from_rotation_x(ax * d) * glam::DMat3::from_rotation_y(ay * d);
+                DAffine3::from_mat3_translation(turn * start.pose.matrix3, start.pose.translation)
+            })
+            .collect();
         let mut best = *start;
-        for (ax, ay) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
-            let turn = glam::DMat3::from_rotation_x(ax * d) * glam::DMat3::from_rotation_y(ay * d);
-            let tilted =
-                DAffine3::from_mat3_translation(turn * start.pose.matrix3, start.pose.translation);
-            let s = self.fitted(&tilted, frame);
+        for s in self.fitted_all(&tilted, false, frame) {
             if s.score > best.score {
                 best = s;
             }
@@ -312,7 +376,7 @@ impl ShapeEstimator {
             region,
             colour: proposal.colour,
         };
-        let mut scored: Vec<Scored> = starts.iter().map(|s| self.fitted(s, &frame)).collect();
+        let mut scored = self.fitted_all(&starts, false, &frame);
         scored.sort_by(|a, b| b.score.total_cmp(&a.score));
         let mut anchored = false;
         if let Some(a) = anchor {
@@ -356,19 +420,18 @@ impl ShapeEstimator {
         // Challengers: the best turned about the object's up axis and
         // tilted; a pose that differs and explains the image about as
         // well makes the best one a guess.
-        for turn in CHALLENGER_TURNS_DEG {
+        let turned = CHALLENGER_TURNS_DEG.iter().map(|turn| {
             let r = best.matrix3 * glam::DMat3::from_rotation_z(turn.to_radians());
-            let start = DAffine3::from_mat3_translation(r, best.translation);
-            let s = self.fitted_by(&start, &frame, true);
-            scored.push(s);
-        }
-        for (ax, ay) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
-            let d = CHALLENGER_TILT_DEG.to_radians();
+            DAffine3::from_mat3_translation(r, best.translation)
+        });
+        let d = CHALLENGER_TILT_DEG.to_radians();
+        let tilted = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)].map(|(ax, ay)| {
             let turn = glam::DMat3::from_rotation_x(ax * d) * glam::DMat3::from_rotation_y(ay * d);
-            let start = DAffine3::from_mat3_translation(turn * best.matrix3, best.translation);
-            let s = self.fitted_by(&start, &frame, true);
-            scored.push(s);
-        }
+            DAffine3::from_mat3_translation(turn * best.matrix3, best.translation)
+        });
+        let challengers: Vec<DAffine3> = turned.chain(tilted).collect();
+        let fitted = self.fitted_all(&challengers, true, &frame);
+        scored.extend(fitted);
         scored[1..].sort_by(|a, b| b.score.total_cmp(&a.score));
         let rival = (1..scored.len()).find(|&i| self.distinct(&scored[i].pose, &best));
         let covariance = fit_covariance(
@@ -403,5 +466,60 @@ pub struct Proposal<'a> {
     pub overrulable: bool,
     /// How well the object's colours match each view, `colour(θ, φ)` in
     /// [0, 1]: what tells apart views whose outlines are alike.
-    pub colour: Option<&'a dyn Fn(f64, f64) -> f32>,
+    pub colour: Option<&'a (dyn Fn(f64, f64) -> f32 + Sync)>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{pose_of, rotation_angle_deg};
+    use acch_capture::{Object, render_posed};
+    use glam::DVec2;
+
+    #[test]
+    fn a_helper_thread_changes_no_bit_of_the_estimate() {
+        let object = Object::builtin("tricolor").unwrap();
+        let grid: Vec<(f64, f64)> = [20.0, 50.0, 80.0]
+            .iter()
+            .flat_map(|&t| (0..12).map(move |p| (t, p as f64 * 30.0)))
+            .collect();
+        let model = ShapeModel::train(&object, &grid);
+        let k = Intrinsics::default();
+        let alone =
+            &mut ShapeEstimator::new(model.clone(), Symmetry::default(), ShapeSettings::default());
+        let shared = &mut ShapeEstimator::new(model, Symmetry::default(), ShapeSettings::default());
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        shared.share_fits_with(Arc::new(pool));
+        for (theta, phi, roll) in [(50.0, 60.0, 0.0), (20.0, 210.0, 30.0), (80.0, 300.0, -60.0)] {
+            let view = View {
+                theta_deg: theta,
+                phi_deg: phi,
+                roll_deg: roll,
+                distance: 8.0,
+            };
+            let truth = pose_of(&view, &k, DVec2::new(300.0, 250.0));
+            let render = render_posed(&[(&object, truth, 1.0)], &k);
+            let image = Image {
+                rgb: &render.rgb,
+                width: k.width as usize,
+                height: k.height as usize,
+            };
+            let region = Region::whole(&render.labels, &k);
+            let proposal = Proposal::default();
+            let a = alone.estimate(&image, &k, &region, &proposal).unwrap();
+            let b = shared.estimate(&image, &k, &region, &proposal).unwrap();
+            // Not a vacuous comparison: the estimate is the object's pose,
+            // after a search, a polish and the challengers.
+            assert!(
+                rotation_angle_deg(&a.best().pose.matrix3, &truth.matrix3) < 10.0,
+                "{:?}",
+                a.view()
+            );
+            assert!(a.scored.len() > 11, "{}", a.scored.len());
+            assert_eq!(a, b, "at θ {theta} φ {phi} roll {roll}");
+        }
+    }
 }
