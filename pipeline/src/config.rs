@@ -1095,7 +1095,7 @@ impl PipelineConfig {
     }
 
     /// The CPUs for the thread that shares the pose stage's shape fits
-    /// ([`crate::stages::fit_helper`]), asked before the calling thread is
+    /// (`stages::fit_helper`), asked before the calling thread is
     /// pinned: those it may use beside the stages' when the stages are
     /// placed, all of them otherwise; `None` when no CPU is left beside
     /// the stages' (the helper would only take turns with the stage).

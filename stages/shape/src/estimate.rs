@@ -473,17 +473,12 @@ pub struct Proposal<'a> {
 mod tests {
     use super::*;
     use crate::geometry::{pose_of, rotation_angle_deg};
-    use acch_capture::{Object, render_posed};
+    use acch_capture::render_posed;
     use glam::DVec2;
 
     #[test]
     fn a_helper_thread_changes_no_bit_of_the_estimate() {
-        let object = Object::builtin("tricolor").unwrap();
-        let grid: Vec<(f64, f64)> = [20.0, 50.0, 80.0]
-            .iter()
-            .flat_map(|&t| (0..12).map(move |p| (t, p as f64 * 30.0)))
-            .collect();
-        let model = ShapeModel::train(&object, &grid);
+        let (object, _, model) = crate::testing::tricolor();
         let k = Intrinsics::default();
         let alone =
             &mut ShapeEstimator::new(model.clone(), Symmetry::default(), ShapeSettings::default());

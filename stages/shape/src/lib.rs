@@ -30,3 +30,22 @@ pub use model::{ColourPoint, ContourPoint, ShapeModel, ShapeModelError, ShapeVie
 pub use search::{Candidate, Region, overlap_at, place_view, roll_matrix, search};
 pub use symmetry::{Symmetry, SymmetryError};
 pub use verify::{Evidence, evidence};
+
+/// What the tests of several modules share.
+#[cfg(test)]
+pub(crate) mod testing {
+    use crate::ShapeModel;
+    use acch_capture::Object;
+
+    /// Three blocks, whose views' silhouettes are no two alike, and their
+    /// shape over 36 views (θ 20°, 50°, 80°; φ every 30°).
+    pub fn tricolor() -> (Object, Vec<(f64, f64)>, ShapeModel) {
+        let object = Object::builtin("tricolor").unwrap();
+        let grid: Vec<(f64, f64)> = [20.0, 50.0, 80.0]
+            .iter()
+            .flat_map(|&t| (0..12).map(move |p| (t, p as f64 * 30.0)))
+            .collect();
+        let model = ShapeModel::train(&object, &grid);
+        (object, grid, model)
+    }
+}

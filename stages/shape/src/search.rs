@@ -288,17 +288,11 @@ fn placed_pose(
 mod tests {
     use super::*;
     use crate::geometry::{rotation_angle_deg, view_of};
-    use acch_capture::{Object, render_posed};
+    use acch_capture::render_posed;
 
     #[test]
     fn a_rendered_view_finds_its_own_view_and_roll_anywhere_in_the_image() {
-        // Three blocks: no two views' silhouettes alike.
-        let object = Object::builtin("tricolor").unwrap();
-        let grid: Vec<(f64, f64)> = [20.0, 50.0, 80.0]
-            .iter()
-            .flat_map(|&t| (0..12).map(move |p| (t, p as f64 * 30.0)))
-            .collect();
-        let model = ShapeModel::train(&object, &grid);
+        let (object, grid, model) = crate::testing::tricolor();
         let k = Intrinsics::default();
         for (v, roll, px) in [
             (4usize, 0.0, DVec2::new(320.0, 240.0)),
