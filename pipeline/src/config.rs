@@ -1094,12 +1094,12 @@ impl PipelineConfig {
         Ok(Some(cpus))
     }
 
-    /// The CPUs for the thread that shares the pose stage's shape fits
-    /// (`stages::fit_helper`), asked before the calling thread is
+    /// The CPUs for the thread that shares the pose stage's work
+    /// (`stages::pose_helper`), asked before the calling thread is
     /// pinned: those it may use beside the stages' when the stages are
     /// placed, all of them otherwise; `None` when no CPU is left beside
     /// the stages' (the helper would only take turns with the stage).
-    pub fn fit_helper_cpus(&self) -> std::io::Result<Option<Vec<usize>>> {
+    pub fn pose_helper_cpus(&self) -> std::io::Result<Option<Vec<usize>>> {
         let allowed = sched::allowed_cpus()?;
         let stages = match &self.run.stage_cpus {
             StageCpus::Free => return Ok((allowed.len() >= 2).then_some(allowed)),

@@ -380,7 +380,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     cfg.resolve_stream_size()?;
     let cfg = &cfg;
     // Before the pinning below narrows what this thread may use.
-    let helper_cpus = cfg.fit_helper_cpus().map_err(|source| RunError::Sched {
+    let helper_cpus = cfg.pose_helper_cpus().map_err(|source| RunError::Sched {
         what: format!("run.stage_cpus = {}", cfg.run.stage_cpus),
         source,
     })?;
@@ -395,9 +395,9 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let smoothed = cfg.smoothed_database()?;
     let mut chain = Chain::build_for_sets(&db, smoothed.as_ref(), &settings)?;
     if let Some(cpus) = helper_cpus {
-        let helper = crate::stages::fit_helper(cpus)?;
+        let helper = crate::stages::pose_helper(cpus)?;
         for pose in chain.stages_mut().pose.each_mut() {
-            pose.share_fits_with(&helper);
+            pose.share_with(&helper);
         }
     }
     let views = crate::observers::view_angles(&db);
@@ -944,16 +944,16 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
             let mut pose = by_set(sets, Pose::new)?;
             // run_stage pins this process to the stages' CPUs; the helper
             // goes beside them.
-            if let Some(cpus) = cfg.fit_helper_cpus().map_err(|source| NodeError::Sched {
+            if let Some(cpus) = cfg.pose_helper_cpus().map_err(|source| NodeError::Sched {
                 what: format!(
-                    "run.stage_cpus = {}: the pose's fit helper",
+                    "run.stage_cpus = {}: the pose stage's helper",
                     cfg.run.stage_cpus
                 ),
                 source,
             })? {
-                let helper = crate::stages::fit_helper(cpus)?;
+                let helper = crate::stages::pose_helper(cpus)?;
                 for p in pose.each_mut() {
-                    p.share_fits_with(&helper);
+                    p.share_with(&helper);
                 }
             }
             run_stage(&cfg, pose, none)

@@ -171,19 +171,18 @@ pub struct Pose {
     refinement: Refinement,
 }
 
-/// A thread on `cpus` for the pose stage's shape fits
-/// ([`Pose::share_fits_with`]): the fits of a frame are a third of the
-/// pipeline's work and independent of each other; on the 2-CPU bench
-/// machine, in one process, a second CPU took the pose stage from
-/// 8.6-8.7 to 7.0-7.5 ms p50 and 12.2-12.7 to 9.6-10.1 ms p99
-/// (docs/latency.md, "Now").
-pub fn fit_helper(cpus: Vec<usize>) -> Result<Arc<rayon::ThreadPool>, BuildError> {
+/// A thread on `cpus` that shares the pose stage's work
+/// ([`Pose::share_with`]): the shape's fits and the colours' matching with
+/// every view, each independent of the others. On the 2-CPU bench machine
+/// (docs/latency.md, "Now") the fits alone, shared, took the pose stage
+/// in one process from 8.6-8.7 to 7.0-7.5 ms p50.
+pub fn pose_helper(cpus: Vec<usize>) -> Result<Arc<rayon::ThreadPool>, BuildError> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(1)
-        .thread_name(|_| "acch-fit-helper".to_owned())
+        .thread_name(|_| "acch-pose-helper".to_owned())
         .start_handler(move |_| {
             if let Err(e) = acch_ipc::sched::pin_to(&cpus) {
-                tracing::warn!("the shape fits' helper not pinned to CPUs {cpus:?}: {e}");
+                tracing::warn!("the pose stage's helper not pinned to CPUs {cpus:?}: {e}");
             }
         })
         .build()
@@ -238,9 +237,10 @@ impl Pose {
         })
     }
 
-    /// Shares the shape's fits with `helper`'s thread ([`fit_helper`]);
-    /// the estimates stay the same bit for bit.
-    pub fn share_fits_with(&mut self, helper: &Arc<rayon::ThreadPool>) {
+    /// Shares the shape's fits and the colours' matching with `helper`'s
+    /// thread ([`pose_helper`]); the estimates stay the same bit for bit.
+    pub fn share_with(&mut self, helper: &Arc<rayon::ThreadPool>) {
+        self.estimator.share_matching_with(Arc::clone(helper));
         if let Some(shape) = &mut self.shape {
             shape.share_fits_with(Arc::clone(helper));
         }

@@ -15,6 +15,7 @@ pub mod layout;
 pub mod light;
 pub mod palette;
 pub mod quality;
+pub mod share;
 pub mod smooth;
 
 pub use colour_map::{ColourMap, ColourMapError, PlacedQuery};

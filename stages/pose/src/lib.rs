@@ -14,6 +14,7 @@ pub mod train;
 pub use colour_map::{ViewMaps, store_view_maps, view_maps};
 
 use acch_core::{HistogramExtractor, HistogramKind, IndexImage, Rect, ViewDatabase};
+use std::sync::Arc;
 
 /// Why an estimator could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -140,15 +141,29 @@ pub enum Matching {
 /// `out`: by the visible part when `visible` holds the views' pairs at the
 /// training scale and their factor to the query's pairs (the share of the
 /// query's pairs each whole view holds), else by the paper's normalised
-/// match value.
-fn match_views(db: &ViewDatabase, visible: Option<(&[f32], f32)>, query: &[f32], out: &mut [f32]) {
-    match visible {
-        Some((view_pairs, k)) => {
+/// match value. The views are shared with `helper`'s thread when given
+/// ([`acch_core::share::in_turn`]; the same values either way).
+fn match_views(
+    db: &ViewDatabase,
+    visible: Option<(&[f32], f32)>,
+    query: &[f32],
+    out: &mut [f32],
+    helper: Option<&rayon::ThreadPool>,
+) {
+    match (visible, helper) {
+        (Some((view_pairs, k)), None) => {
             for (i, (r, n)) in out.iter_mut().zip(view_pairs).enumerate() {
                 *r = acch_core::scaled_intersection(query, db.histogram(i), n * k);
             }
         }
-        None => db.response_into(query, out),
+        (Some((view_pairs, k)), Some(pool)) => {
+            let matched =
+                acch_core::share::in_turn(Some(pool), out.len(), &mut (), &mut (), |i, _| {
+                    acch_core::scaled_intersection(query, db.histogram(i), view_pairs[i] * k)
+                });
+            out.copy_from_slice(&matched);
+        }
+        (None, _) => db.response_into(query, out),
     }
 }
 
@@ -270,7 +285,7 @@ pub fn phi_error(a: f32, b: f32) -> f32 {
 }
 
 /// Estimates poses against one database, reusing its buffers (no allocation
-/// per frame once warm).
+/// per frame once warm, unless it shares the matching with a helper).
 pub struct PoseEstimator {
     db: ViewDatabase,
     slices: Vec<Slice>,
@@ -299,6 +314,8 @@ pub struct PoseEstimator {
     view_maps: Option<ViewMaps>,
     /// The last query's map, for [`Self::map_rival`].
     placed: acch_core::PlacedQuery,
+    /// A thread that shares the matching ([`Self::share_matching_with`]).
+    helper: Option<Arc<rayon::ThreadPool>>,
 }
 
 impl PoseEstimator {
@@ -342,6 +359,7 @@ impl PoseEstimator {
             layout: vec![0.0; db.params.colours as usize * acch_core::LAYOUT_FIELDS],
             view_maps,
             placed: acch_core::PlacedQuery::default(),
+            helper: None,
             db,
         })
     }
@@ -423,6 +441,12 @@ impl PoseEstimator {
         self.db.train_distance_m / distance_m
     }
 
+    /// Shares the matching of a query with every view with `pool`'s first
+    /// thread ([`acch_core::share::in_turn`]): the same response, sooner.
+    pub fn share_matching_with(&mut self, pool: Arc<rayon::ThreadPool>) {
+        self.helper = Some(pool);
+    }
+
     /// Computes the histogram of the masked ROI at `scale` and the response
     /// against every view; returns the number of pixel pairs counted.
     pub fn respond(
@@ -478,7 +502,13 @@ impl PoseEstimator {
             )),
             _ => None,
         };
-        match_views(&self.db, visible, &self.histogram, &mut self.response);
+        match_views(
+            &self.db,
+            visible,
+            &self.histogram,
+            &mut self.response,
+            self.helper.as_deref(),
+        );
         if pairs > 0
             && scale > 0.0
             && let Some(layouts) = &self.view_layouts
@@ -507,7 +537,7 @@ impl PoseEstimator {
         assert_eq!(out.len(), self.db.views().len(), "response length");
         let visible =
             visible_pairs(self.view_pairs.as_deref(), self.matching).map(|p| (p, 1.0 / p[a]));
-        match_views(&self.db, visible, self.db.histogram(a), out);
+        match_views(&self.db, visible, self.db.histogram(a), out, None);
         if let Some(layouts) = &self.view_layouts {
             let per_view = self.layout.len();
             let own = &layouts[a * per_view..(a + 1) * per_view];
@@ -996,6 +1026,26 @@ mod tests {
             runner_up(&own) > own[4] - 0.01,
             "the histograms alone do not"
         );
+    }
+
+    #[test]
+    fn a_helper_thread_changes_no_bit_of_the_response() {
+        let db = lids_database(&[]);
+        let (rgb, mask) = lid(120.0);
+        let index = db.palette.quantise(&rgb, 80, 80);
+        let roi = train::mask_bbox(&mask, 80, 80).unwrap();
+        let mut alone = PoseEstimator::new(db.clone()).unwrap();
+        let mut shared = PoseEstimator::new(db).unwrap();
+        assert!(shared.view_pairs.is_some(), "the visible part is matched");
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        shared.share_matching_with(Arc::new(pool));
+        alone.respond(&index, Some(&mask), roi, 1.0);
+        shared.respond(&index, Some(&mask), roi, 1.0);
+        assert!(alone.response().iter().any(|&v| v > 0.5));
+        assert_eq!(alone.response(), shared.response());
     }
 
     #[test]

@@ -17,7 +17,6 @@ use crate::verify::{Evidence, evidence};
 use acch_capture::Intrinsics;
 use glam::DAffine3;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// How the shape estimate is made.
 #[derive(Clone, Debug, PartialEq)]
@@ -219,9 +218,9 @@ impl ShapeEstimator {
         }
     }
 
-    /// Shares every batch of fits with `pool`'s first thread: the calling
-    /// thread and it take the next fit in turn until none is left. The
-    /// fits are independent, so the estimate is the same bit for bit.
+    /// Shares every batch of fits with `pool`'s first thread
+    /// ([`acch_core::share::in_turn`]). The fits are independent, so the
+    /// estimate is the same bit for bit.
     pub fn share_fits_with(&mut self, pool: Arc<rayon::ThreadPool>) {
         self.helper = Some((pool, LineScratch::default()));
     }
@@ -249,7 +248,8 @@ impl ShapeEstimator {
     }
 
     /// Each of `starts` fitted (by the short schedule when `quick`) and
-    /// measured, in order; shared with the helper thread when there is one.
+    /// measured, in order; shared with the helper thread when there is one
+    /// ([`acch_core::share::in_turn`]).
     fn fitted_all(&mut self, starts: &[DAffine3], quick: bool, frame: &Frame) -> Vec<Scored> {
         let fitter = Fitter {
             model: &self.model,
@@ -257,31 +257,20 @@ impl ShapeEstimator {
             edges: &self.edges,
             frame,
         };
-        let lines = &mut self.lines;
-        let Some((pool, helper_lines)) = self.helper.as_mut().filter(|_| starts.len() >= 2) else {
-            return starts.iter().map(|s| fitter.fit(s, quick, lines)).collect();
+        // Without a helper nothing takes the second buffers (empty ones
+        // allocate nothing).
+        let mut unused = LineScratch::default();
+        let (pool, helper_lines) = match &mut self.helper {
+            Some((pool, lines)) => (Some(&**pool), lines),
+            None => (None, &mut unused),
         };
-        // Whoever is free takes the next start: a helper the scheduler
-        // holds back costs at most the one fit it has taken.
-        let next = AtomicUsize::new(0);
-        let take = |lines: &mut LineScratch| {
-            let mut done = Vec::new();
-            loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(start) = starts.get(i) else {
-                    return done;
-                };
-                done.push((i, fitter.fit(start, quick, lines)));
-            }
-        };
-        let mut theirs = Vec::new();
-        let mut done = pool.in_place_scope(|scope| {
-            scope.spawn(|_| theirs = take(helper_lines));
-            take(lines)
-        });
-        done.append(&mut theirs);
-        done.sort_by_key(|&(i, _)| i);
-        done.into_iter().map(|(_, s)| s).collect()
+        acch_core::share::in_turn(
+            pool,
+            starts.len(),
+            &mut self.lines,
+            helper_lines,
+            |i, lines| fitter.fit(&starts[i], quick, lines),
+        )
     }
 
     /// `start` fitted and measured.
