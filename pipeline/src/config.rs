@@ -1560,6 +1560,37 @@ mod tests {
     }
 
     #[test]
+    fn the_pose_helper_goes_beside_the_stages_and_nowhere_without_a_cpu_to_spare() {
+        // On a thread of its own, pinned to the first two CPUs this process
+        // may use (when it may use two), so the answer does not depend on
+        // the test harness's threads.
+        std::thread::spawn(|| {
+            let allowed = sched::allowed_cpus().unwrap();
+            let helper = |stage_cpus: StageCpus| {
+                let mut cfg = PipelineConfig::default();
+                cfg.run.stage_cpus = stage_cpus;
+                cfg.pose_helper_cpus().unwrap()
+            };
+            if allowed.len() < 2 {
+                assert_eq!(helper(StageCpus::Auto), None);
+                assert_eq!(helper(StageCpus::Free), None);
+                return;
+            }
+            let (a, b) = (allowed[0], allowed[1]);
+            sched::pin_to(&[a, b]).unwrap();
+            // auto: the stages on the last CPU, the helper on the other.
+            assert_eq!(helper(StageCpus::Auto), Some(vec![a]));
+            assert_eq!(helper(StageCpus::List(vec![a])), Some(vec![b]));
+            // The stages on every CPU: nothing beside them.
+            assert_eq!(helper(StageCpus::List(vec![a, b])), None);
+            // Not placed: anywhere.
+            assert_eq!(helper(StageCpus::Free), Some(vec![a, b]));
+        })
+        .join()
+        .unwrap();
+    }
+
+    #[test]
     fn the_default_round_trips_and_is_valid() {
         let d = PipelineConfig::default();
         let back = PipelineConfig::parse(&toml::to_string(&d).unwrap()).unwrap();
