@@ -222,11 +222,13 @@ mod with_the_feature {
         let failures = camera["failures"].as_u64().unwrap();
         // 60 frames from pipelines of 25 buffers: two failures; the third
         // pipeline gives the last 10 frames, and up to 15 more its two
-        // predecessors' appsink dropped. A slow machine drops a few; more than
-        // 10 of 60 is a source that cannot keep up.
+        // predecessors' appsink dropped. More than 15 is a source that cannot
+        // keep up (the third pipeline would fail as well). On the quiet CI
+        // machine the appsink drops 7-11 (2026-12-07, 24 runs; a bound of 10
+        // failed 1 run in 4).
         let dropped = camera["dropped"].as_u64().unwrap();
         assert!(
-            dropped <= 10,
+            dropped <= 15,
             "the appsink dropped {dropped} of 60: {camera}"
         );
         assert_eq!(
