@@ -394,12 +394,7 @@ pub fn run_in_process(cfg: &PipelineConfig, opts: &RunOptions) -> Result<RunSumm
     let settings = cfg.settings(&db)?;
     let smoothed = cfg.smoothed_database()?;
     let mut chain = Chain::build_for_sets(&db, smoothed.as_ref(), &settings)?;
-    if let Some(cpus) = helper_cpus {
-        let helper = crate::stages::pose_helper(cpus)?;
-        for pose in chain.stages_mut().pose.each_mut() {
-            pose.share_with(&helper);
-        }
-    }
+    crate::stages::share_with_helper(&mut chain.stages_mut().pose, helper_cpus)?;
     let views = crate::observers::view_angles(&db);
     drop((db, smoothed));
     let spec = cfg.source_spec()?;
@@ -944,18 +939,14 @@ pub fn run_process(name: &str, config: &Path) -> Result<(), NodeError> {
             let mut pose = by_set(sets, Pose::new)?;
             // run_stage pins this process to the stages' CPUs; the helper
             // goes beside them.
-            if let Some(cpus) = cfg.pose_helper_cpus().map_err(|source| NodeError::Sched {
+            let cpus = cfg.pose_helper_cpus().map_err(|source| NodeError::Sched {
                 what: format!(
                     "run.stage_cpus = {}: the pose stage's helper",
                     cfg.run.stage_cpus
                 ),
                 source,
-            })? {
-                let helper = crate::stages::pose_helper(cpus)?;
-                for p in pose.each_mut() {
-                    p.share_with(&helper);
-                }
-            }
+            })?;
+            crate::stages::share_with_helper(&mut pose, cpus)?;
             run_stage(&cfg, pose, none)
         }
         StageId::Confidence => run_stage(&cfg, by_set(sets, Confidence::new)?, none),

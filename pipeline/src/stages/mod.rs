@@ -14,7 +14,7 @@ pub use by_set::{BySet, Chosen};
 pub use confidence::{Confidence, Evidence, Rated, Rating, Rules, Verdict};
 pub use pose::{
     COLOUR_ANCHORED_FROM, Pose, PoseEstimate, Posed, ResponsePayload, ShapeFit, colour_trust,
-    fit_covariance_matrix, fit_pose, fit_view, pose_helper,
+    fit_covariance_matrix, fit_pose, fit_view, pose_helper, share_with_helper,
 };
 pub use recognition::{Cells, Recognised, Recognition, RecognitionPayload, Window};
 pub use seeding::{FusedPose, Fusion, SeedPose, Seeded, Seeding, SeedingPart};

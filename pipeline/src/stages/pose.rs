@@ -190,6 +190,21 @@ pub fn pose_helper(cpus: Vec<usize>) -> Result<Arc<rayon::ThreadPool>, BuildErro
         .map_err(|e| BuildError::Threads(e.to_string()))
 }
 
+/// Every set's pose stage of `poses` sharing one [`pose_helper`] on
+/// `cpus` (`PipelineConfig::pose_helper_cpus`); `None`: no helper.
+pub fn share_with_helper(
+    poses: &mut super::BySet<Pose>,
+    cpus: Option<Vec<usize>>,
+) -> Result<(), BuildError> {
+    if let Some(cpus) = cpus {
+        let helper = pose_helper(cpus)?;
+        for pose in poses.each_mut() {
+            pose.share_with(&helper);
+        }
+    }
+    Ok(())
+}
+
 impl Pose {
     /// The stage for `db` on frames of `settings`.
     pub fn new(db: &ViewDatabase, settings: &StageSettings) -> Result<Self, BuildError> {
