@@ -129,6 +129,12 @@ pub struct ImageRow {
     /// With automatic segmentation and an annotated mask: the share of
     /// the grown region on the object.
     pub region_on_object: Option<f64>,
+    /// With automatic segmentation and an annotated mask: the share of
+    /// the object's visible mask the grown region covers.
+    pub region_covers_object: Option<f64>,
+    /// The same two shares of the region the shape judged by, grown
+    /// region refined by the frame's colours (on the object, covering it).
+    pub refined_on_object: Option<(f64, f64)>,
     /// The score acch accepts by ([`acceptance_score`]), when rated.
     pub acceptance_score: Option<f32>,
     /// Of an accepted estimate with a 6-DOF pose, against the true pose
@@ -145,8 +151,10 @@ pub struct ImageRow {
 }
 
 /// The score acch accepts an estimate by: for one its shape chose
-/// (verified 1), the smaller of its contour's share on the region's edge
-/// and its margin over every distinct pose, each over its bar; else the
+/// (verified 1), the smallest of its contour's share on the region's edge,
+/// its overlap, its margin over every distinct pose and (for a region
+/// recognition found) its contour's share in the frame, each over its bar;
+/// else the
 /// network's confidence over its threshold. Accepted means this is at
 /// least 1, and the object was found at or above recognition's threshold
 /// (and, for the colour rules, no rival, crest, misplacement or faint
@@ -156,6 +164,11 @@ pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
         (v.region_edge / v.min_region_edge)
             .min(v.overlap / v.min_overlap)
             .min(v.shape_margin / v.min_shape_margin)
+            .min(if v.detection_margin.is_finite() {
+                v.in_frame / v.min_in_frame
+            } else {
+                f32::INFINITY
+            })
     } else if v.confidence.is_finite() && v.threshold > 0.0 {
         v.confidence / v.threshold
     } else {
@@ -206,6 +219,8 @@ pub struct CandidateRow {
     pub rotation_err_deg: f64,
     /// What ranked it.
     pub score: f32,
+    /// Share of its contour in the frame.
+    pub in_frame: f32,
     /// What it explains of the image.
     pub separation: f32,
     /// Silhouette against region.
@@ -703,7 +718,8 @@ pub fn evaluate(
     let bar = progress(images.len() as u64, "images");
     let mut frame_mask = Vec::new();
     for (seq, img) in images.iter().enumerate() {
-        let mut region_on_object = None;
+        let (mut region_on_object, mut region_covers_object) = (None, None);
+        let mut refined_on_object = None;
         let rgb = read_image(&img.image)?.to_rgb8();
         let (w, h) = rgb.dimensions();
         if stages.as_ref().is_none_or(|s| s.size != (w, h)) {
@@ -727,14 +743,33 @@ pub fn evaluate(
                 if let (Some(region), Some(path)) = (s.chain.last_region(), &img.mask) {
                     let truth = read_mask(path, (w, h))?;
                     region.frame_mask(w, h, &mut frame_mask);
-                    let (mut on, mut all) = (0usize, 0usize);
+                    let (mut on, mut all, mut object) = (0usize, 0usize, 0usize);
                     for (r, t) in frame_mask.iter().zip(&truth) {
+                        object += usize::from(*t != 0);
                         if *r != 0 {
                             all += 1;
                             on += usize::from(*t != 0);
                         }
                     }
                     region_on_object = Some(on as f64 / all.max(1) as f64);
+                    region_covers_object = Some(on as f64 / object.max(1) as f64);
+                    let pose = s.chain.stages().pose.last_used();
+                    if let Some(refined) = pose.refined_region() {
+                        let (mut on, mut all) = (0usize, 0usize);
+                        let r = refined.roi;
+                        for (i, &m) in refined.mask.iter().enumerate() {
+                            let x = r.x as usize + i % r.width as usize;
+                            let y = r.y as usize + i / r.width as usize;
+                            if m != 0 {
+                                all += 1;
+                                on += usize::from(truth[y * w as usize + x] != 0);
+                            }
+                        }
+                        refined_on_object = Some((
+                            on as f64 / all.max(1) as f64,
+                            on as f64 / object.max(1) as f64,
+                        ));
+                    }
                 }
                 (out.pose().done(), *out.rating())
             }
@@ -801,6 +836,7 @@ pub fn evaluate(
                             right,
                             rotation_err_deg: rotation_error_deg(e, t),
                             score: c.score,
+                            in_frame: c.evidence.in_frame,
                             separation: c.evidence.separation,
                             overlap: c.evidence.overlap,
                             region_edge: c.evidence.region_edge,
@@ -871,6 +907,8 @@ pub fn evaluate(
             }),
             candidates,
             region_on_object,
+            region_covers_object,
+            refined_on_object,
             acceptance_score: rating.verdict().map(|v| acceptance_score(&v)),
             seed_rotation_err_deg: seed_err.map(|e| e.0),
             seed_translation_err_m: seed_err.map(|e| e.1),

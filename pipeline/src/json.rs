@@ -212,6 +212,11 @@ pub struct ResultJson<'a> {
     pub shape_margin: Option<f32>,
     /// The least margin accepted, when verified.
     pub min_shape_margin: Option<f32>,
+    /// Share of the fitted contour in the frame, when verified.
+    pub in_frame: Option<f32>,
+    /// The least share accepted, when verified and recognition found the
+    /// region (a given mask needs none).
+    pub min_in_frame: Option<f32>,
     /// The object's pose the shape fitted, when verified: camera from
     /// object, translation (metres) and rotation (x, y, z, w).
     pub fitted_pose: Option<([f32; 3], [f32; 4])>,
@@ -346,6 +351,10 @@ impl<'a> ResultJson<'a> {
             min_shape_margin: verdict
                 .filter(|v| v.verified > 0)
                 .map(|v| v.min_shape_margin),
+            in_frame: verdict.filter(|v| v.verified > 0).map(|v| v.in_frame),
+            min_in_frame: verdict
+                .filter(|v| v.verified > 0 && v.detection_margin.is_finite())
+                .map(|v| v.min_in_frame),
             fitted_pose: m
                 .pose()
                 .done()

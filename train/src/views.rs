@@ -222,7 +222,10 @@ pub fn train_real_views(
             )
         })
         .collect();
-    train_views(name, train_distance as f32, &labelled, config)
+    let mut db = train_views(name, train_distance as f32, &labelled, config)?;
+    db.sections
+        .insert(acch_core::FROM_PHOTOGRAPHS_SECTION.to_owned(), Vec::new());
+    Ok(db)
 }
 
 /// Reads an image; errors name the file.

@@ -74,6 +74,8 @@ pub struct ShapeEvidence {
     /// The fit's score over the best score of a candidate that would fail
     /// as an estimate of it (infinity: none did).
     pub margin: f32,
+    /// Share of the fitted contour in the frame.
+    pub in_frame: f32,
     /// The colour histograms' view is the estimate and the fit placed it
     /// ([`crate::stages::ShapeFit::anchored`]).
     pub anchored: bool,
@@ -129,9 +131,15 @@ pub struct Verdict {
     pub shape_margin: f32,
     /// The least margin accepted ([`acch_confidence::MIN_SHAPE_MARGIN`]).
     pub min_shape_margin: f32,
+    /// Share of the fitted contour in the frame (NaN: unverified).
+    pub in_frame: f32,
+    /// The least share accepted for a region recognition found
+    /// ([`acch_confidence::MIN_IN_FRAME`]).
+    pub min_in_frame: f32,
     /// Chosen by the shape (verified 1): the contour on the region's edge
-    /// and the silhouette covering the region, a clear margin over every distinct pose, and found at or above
-    /// recognition's threshold. Otherwise the colour rules:
+    /// and the silhouette covering the region, a clear margin over every
+    /// distinct pose, the contour in the frame (a region recognition
+    /// found), and found at or above recognition's threshold. Otherwise the colour rules:
     /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
     /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint); and
@@ -169,6 +177,8 @@ impl Verdict {
             min_overlap: rules.min_overlap,
             shape_margin: evidence.shape.map_or(f32::NAN, |s| s.margin),
             min_shape_margin: rules.min_shape_margin,
+            in_frame: evidence.shape.map_or(f32::NAN, |s| s.in_frame),
+            min_in_frame: rules.min_in_frame,
             accepted: false,
         };
         let colour_rules = evidence.confidence >= rules.threshold
@@ -177,7 +187,13 @@ impl Verdict {
             && !v.misplaced()
             && !v.faint();
         v.accepted = match v.verified {
-            1 => v.shape_agrees() && v.shape_covers() && v.shape_clear() && !v.under_threshold(),
+            1 => {
+                v.shape_agrees()
+                    && v.shape_covers()
+                    && v.shape_clear()
+                    && v.shape_in_frame()
+                    && !v.under_threshold()
+            }
             2 => colour_rules && v.shape_agrees(),
             _ => colour_rules,
         };
@@ -194,6 +210,13 @@ impl Verdict {
     /// region.
     pub fn shape_covers(&self) -> bool {
         self.overlap >= self.min_overlap
+    }
+
+    /// Whether enough of the fitted contour lies in the frame to judge it
+    /// (NaN: no). A given mask (no detection: an infinite margin) vouches
+    /// for the object however much of it the frame cuts.
+    pub fn shape_in_frame(&self) -> bool {
+        self.detection_margin == f32::INFINITY || self.in_frame >= self.min_in_frame
     }
 
     /// Whether the fit beats every distinct pose clearly (NaN: no).
@@ -271,6 +294,9 @@ pub struct Rules {
     pub min_overlap: f32,
     /// The least margin of a verified fit over its best distinct rival.
     pub min_shape_margin: f32,
+    /// The least share of a verified contour in the frame, for a region
+    /// recognition found.
+    pub min_in_frame: f32,
 }
 
 impl Rules {
@@ -284,6 +310,7 @@ impl Rules {
             min_region_edge: acch_confidence::MIN_REGION_EDGE,
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
+            min_in_frame: acch_confidence::MIN_IN_FRAME,
         }
     }
 }
@@ -374,6 +401,7 @@ pub struct Confidence {
     min_region_edge: f32,
     min_overlap: f32,
     min_shape_margin: f32,
+    min_in_frame: f32,
     /// The explicit unrated mode: nothing is accepted, even verified.
     unrated: bool,
 }
@@ -426,6 +454,7 @@ impl Confidence {
             min_region_edge: acch_confidence::MIN_REGION_EDGE,
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
+            min_in_frame: acch_confidence::MIN_IN_FRAME,
             unrated: false,
         }
     }
@@ -497,6 +526,7 @@ impl Stage for Confidence {
             region_edge: f.region_edge,
             overlap: f.overlap,
             margin: f.score - f.rival_score,
+            in_frame: f.in_frame,
             anchored: f.anchored == 1,
         });
         // The shape judges what it chose; colours that placed the object
@@ -554,6 +584,7 @@ impl Stage for Confidence {
             min_region_edge: self.min_region_edge,
             min_overlap: self.min_overlap,
             min_shape_margin: self.min_shape_margin,
+            min_in_frame: self.min_in_frame,
         };
         Ok(Rating::Rated(Verdict::new(evidence, rules)))
     }
@@ -592,7 +623,7 @@ mod tests {
     fn a_pose_the_shape_chose_is_accepted_by_the_shapes_bars_alone() {
         // No network (NaN confidence) and no colour evidence: the shape's
         // evidence decides.
-        let judged = |region_edge, overlap, margin, detection_margin| {
+        let judged_in = |region_edge, overlap, margin, detection_margin, in_frame| {
             Verdict::new(
                 Evidence {
                     confidence: f32::NAN,
@@ -602,12 +633,16 @@ mod tests {
                         region_edge,
                         overlap,
                         margin,
+                        in_frame,
                         anchored: false,
                     }),
                     ..clear(f32::NAN, f32::NAN)
                 },
                 rules(),
             )
+        };
+        let judged = |region_edge, overlap, margin, detection_margin| {
+            judged_in(region_edge, overlap, margin, detection_margin, 1.0)
         };
         let v = judged(0.95, 0.85, 0.5, f32::INFINITY);
         assert!(v.accepted && v.verified == 1, "{v:?}");
@@ -637,6 +672,20 @@ mod tests {
             let v = judged(edge, overlap, margin, detection);
             assert!(!v.accepted, "{why}: {v:?}");
         }
+        // A region recognition found (a finite detection margin) is judged
+        // only with its contour in the frame; a given mask whatever the
+        // frame cuts of it.
+        assert!(judged_in(0.95, 0.85, 0.5, 1.2, 0.98).accepted, "at the bar");
+        let cut = judged_in(0.95, 0.85, 0.5, 1.2, 0.97);
+        assert!(!cut.accepted && !cut.shape_in_frame(), "{cut:?}");
+        assert!(
+            !judged_in(0.95, 0.85, 0.5, 1.2, f32::NAN).accepted,
+            "none measured"
+        );
+        assert!(
+            judged_in(0.95, 0.85, 0.5, f32::INFINITY, 0.6).accepted,
+            "a given mask"
+        );
         // Anchored by the colours: the colour rules and the shape's
         // agreement both, so no network rating means rejected.
         let anchored = |confidence| {
@@ -646,6 +695,7 @@ mod tests {
                         region_edge: 0.95,
                         overlap: 0.85,
                         margin: f32::NAN,
+                        in_frame: 1.0,
                         anchored: true,
                     }),
                     ..clear(confidence, 0.5)
@@ -661,6 +711,7 @@ mod tests {
                     region_edge: 0.95,
                     overlap: 0.6,
                     margin: f32::NAN,
+                    in_frame: 1.0,
                     anchored: true,
                 }),
                 ..clear(0.9, 0.5)

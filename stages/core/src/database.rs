@@ -19,6 +19,12 @@ use crate::smooth::Smoothing;
 /// Name of the section that holds the palette's smoothing
 /// ([`Palette::smoothing`]); absent: none.
 pub const SMOOTHING_SECTION: &str = "palette-smoothing";
+
+/// Name of the (empty) section that says the database's colours were
+/// learnt from the camera's own photographs, not from a mesh's rendered
+/// views: they need no bridging to the camera's (the pose stage then takes
+/// segmentation's region as it is).
+pub const FROM_PHOTOGRAPHS_SECTION: &str = "from-photographs";
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 

@@ -19,7 +19,7 @@ pub mod share;
 pub mod smooth;
 
 pub use colour_map::{ColourMap, ColourMapError, PlacedQuery};
-pub use database::{DbError, View, ViewDatabase};
+pub use database::{DbError, FROM_PHOTOGRAPHS_SECTION, View, ViewDatabase};
 pub use histogram::{
     HistogramExtractor, HistogramKind, HistogramParams, OffsetSampling, Rect, intersection,
     match_value, roll_acch, roll_invariant, scaled_intersection,

@@ -35,6 +35,10 @@
 
 #![warn(missing_docs)]
 
+pub mod refine;
+
+pub use refine::{ColourRefiner, RegionMask};
+
 use acch_core::{IndexView, Rect};
 use acch_recognition::{CellRect, Detection, Detector, RecognitionModel, RegionCounts};
 

@@ -13,6 +13,9 @@ use glam::{DAffine3, Vec3};
 /// The evidence for one pose.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Evidence {
+    /// Share of the contour that falls in the frame: the measures below
+    /// judge that part only.
+    pub in_frame: f32,
     /// How sharply the object's colours part from its surroundings across
     /// the contour (the colour fit's own measure).
     pub separation: f32,
@@ -50,6 +53,7 @@ pub fn evidence(
     let mut points: Vec<Projected> = Vec::new();
     project_contour(model, view, pose, k, &mut points);
     let n = points.len().max(1) as f32;
+    let in_frame = points.len() as f32 / model.views[view].contour.len().max(1) as f32;
     let region_edge = points
         .iter()
         .filter(|p| {
@@ -83,6 +87,7 @@ pub fn evidence(
         found as f32 / points.len() as f32
     };
     Evidence {
+        in_frame,
         separation,
         overlap: overlap_at(model, view, pose, region),
         region_edge,
@@ -145,4 +150,52 @@ fn colour_correlation(
         total += cov / (va * vb).sqrt();
     }
     (total / 2.0) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{View, pose_of};
+    use acch_capture::render_posed;
+    use glam::DVec2;
+
+    /// The evidence of the true pose of the tricolor's view, its centre
+    /// at pixel `centre`, against its own rendered silhouette.
+    fn evidence_at(centre: DVec2) -> Evidence {
+        let (object, grid, model) = crate::testing::tricolor();
+        let k = Intrinsics::default();
+        let view_index = 13;
+        let (theta_deg, phi_deg) = grid[view_index];
+        let view = View {
+            theta_deg,
+            phi_deg,
+            roll_deg: 0.0,
+            distance: 8.0,
+        };
+        let pose = pose_of(&view, &k, centre);
+        let render = render_posed(&[(&object, pose, 1.0)], &k);
+        let (w, h) = (k.width as usize, k.height as usize);
+        let image = Image {
+            rgb: &render.rgb,
+            width: w,
+            height: h,
+        };
+        let mut edges = Edges::default();
+        edges.compute(&render.rgb, w, h);
+        let region = Region::whole(&render.labels, &k);
+        evidence(&model, view_index, &pose, 1.0, &image, &edges, &k, &region)
+    }
+
+    #[test]
+    fn a_contour_beyond_the_frame_is_measured_as_such_and_explains_nothing() {
+        let k = Intrinsics::default();
+        let inside = evidence_at(DVec2::new(k.width as f64 / 2.0, k.height as f64 / 2.0));
+        assert!(inside.in_frame > 0.99, "{inside:?}");
+        assert!(inside.region_edge > 0.9, "{inside:?}");
+        // Half beyond the left border: the measures judge the half inside
+        // (all of it on the region's edge), and say how much that is.
+        let cut = evidence_at(DVec2::new(0.0, k.height as f64 / 2.0));
+        assert!(cut.in_frame > 0.3 && cut.in_frame < 0.7, "{cut:?}");
+        assert!(cut.region_edge > 0.9, "{cut:?}");
+    }
 }
