@@ -231,28 +231,7 @@ impl ColourRefiner {
                 }
             }
         }
-        while let Some(i) = self.stack.pop() {
-            let i = i as usize;
-            let (x, y) = (i % width, i / width);
-            let mut visit = |j: usize| {
-                if self.keep[j] == 1 {
-                    self.keep[j] = 2;
-                    self.stack.push(j as u32);
-                }
-            };
-            if x > ix0 {
-                visit(i - 1);
-            }
-            if x + 1 < ix1 {
-                visit(i + 1);
-            }
-            if y > iy0 {
-                visit(i - width);
-            }
-            if y + 1 < iy1 {
-                visit(i + width);
-            }
-        }
+        spread(&mut self.keep, &mut self.stack, width, inner, |k| k == 1, 2);
         // The new region, holes filled: what the inner box's border does
         // not reach through pixels not kept.
         for y in iy0..iy1 {
@@ -265,28 +244,7 @@ impl ColourRefiner {
                 }
             }
         }
-        while let Some(i) = self.stack.pop() {
-            let i = i as usize;
-            let (x, y) = (i % width, i / width);
-            let mut visit = |j: usize| {
-                if self.keep[j] < 2 {
-                    self.keep[j] = 3;
-                    self.stack.push(j as u32);
-                }
-            };
-            if x > ix0 {
-                visit(i - 1);
-            }
-            if x + 1 < ix1 {
-                visit(i + 1);
-            }
-            if y > iy0 {
-                visit(i - width);
-            }
-            if y + 1 < iy1 {
-                visit(i + width);
-            }
-        }
+        spread(&mut self.keep, &mut self.stack, width, inner, |k| k < 2, 3);
         // Clear the old region (it lies within the inner box) and write
         // the new one; leave `keep` zero for the next round.
         for y in iy0..iy1 {
@@ -303,6 +261,34 @@ impl ColourRefiner {
             height: (iy1 - iy0) as u32,
         };
         bounds_of(&self.mask, width, inner_rect)
+    }
+}
+
+/// Spreads from the pixels on `stack` (already marked `to`) to their
+/// 4-neighbours within `bounds` (first column and row, one past the last)
+/// whose value in `buf` can be entered, marking them `to`.
+fn spread(
+    buf: &mut [u8],
+    stack: &mut Vec<u32>,
+    width: usize,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    enters: impl Fn(u8) -> bool,
+    to: u8,
+) {
+    while let Some(i) = stack.pop() {
+        let i = i as usize;
+        let (x, y) = (i % width, i / width);
+        for (inside, j) in [
+            (x > x0, i.wrapping_sub(1)),
+            (x + 1 < x1, i + 1),
+            (y > y0, i.wrapping_sub(width)),
+            (y + 1 < y1, i + width),
+        ] {
+            if inside && enters(buf[j]) {
+                buf[j] = to;
+                stack.push(j as u32);
+            }
+        }
     }
 }
 
