@@ -595,6 +595,24 @@ pub fn dataset_recipe(
     }
 }
 
+/// Of a frame-sized `region` (non-zero = in it) against the object's
+/// frame-sized `truth` mask: the share of the region on the object, and
+/// the share of the object the region covers.
+fn shares(region: &[u8], truth: &[u8]) -> (f64, f64) {
+    let (mut on, mut all, mut object) = (0usize, 0usize, 0usize);
+    for (r, t) in region.iter().zip(truth) {
+        object += usize::from(*t != 0);
+        if *r != 0 {
+            all += 1;
+            on += usize::from(*t != 0);
+        }
+    }
+    (
+        on as f64 / all.max(1) as f64,
+        on as f64 / object.max(1) as f64,
+    )
+}
+
 /// The figures by visible share, when any instance's is known.
 fn bands(rows: &[ImageRow]) -> Vec<BandRow> {
     if rows.iter().all(|r| r.visib_fract.is_none()) {
@@ -743,32 +761,17 @@ pub fn evaluate(
                 if let (Some(region), Some(path)) = (s.chain.last_region(), &img.mask) {
                     let truth = read_mask(path, (w, h))?;
                     region.frame_mask(w, h, &mut frame_mask);
-                    let (mut on, mut all, mut object) = (0usize, 0usize, 0usize);
-                    for (r, t) in frame_mask.iter().zip(&truth) {
-                        object += usize::from(*t != 0);
-                        if *r != 0 {
-                            all += 1;
-                            on += usize::from(*t != 0);
-                        }
-                    }
-                    region_on_object = Some(on as f64 / all.max(1) as f64);
-                    region_covers_object = Some(on as f64 / object.max(1) as f64);
+                    let (on, covers) = shares(&frame_mask, &truth);
+                    (region_on_object, region_covers_object) = (Some(on), Some(covers));
                     let pose = s.chain.stages().pose.last_used();
                     if let Some(refined) = pose.refined_region() {
-                        let (mut on, mut all) = (0usize, 0usize);
+                        frame_mask.fill(0);
                         let r = refined.roi;
-                        for (i, &m) in refined.mask.iter().enumerate() {
-                            let x = r.x as usize + i % r.width as usize;
-                            let y = r.y as usize + i / r.width as usize;
-                            if m != 0 {
-                                all += 1;
-                                on += usize::from(truth[y * w as usize + x] != 0);
-                            }
+                        for (row, src) in refined.mask.chunks_exact(r.width as usize).enumerate() {
+                            let at = (r.y as usize + row) * w as usize + r.x as usize;
+                            frame_mask[at..at + src.len()].copy_from_slice(src);
                         }
-                        refined_on_object = Some((
-                            on as f64 / all.max(1) as f64,
-                            on as f64 / object.max(1) as f64,
-                        ));
+                        refined_on_object = Some(shares(&frame_mask, &truth));
                     }
                 }
                 (out.pose().done(), *out.rating())

@@ -139,8 +139,8 @@ pub struct Verdict {
     /// Chosen by the shape (verified 1): the contour on the region's edge
     /// and the silhouette covering the region, a clear margin over every
     /// distinct pose, the contour in the frame (a region recognition
-    /// found), and found at or above recognition's threshold. Otherwise the colour rules:
-    /// `confidence >= threshold`, `rival <= max_rival` (NaN in either is
+    /// found), and found at or above recognition's threshold. Otherwise
+    /// the colour rules: `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
     /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint); and
     /// when fitted (verified 2), the contour on the region's edge too (a
