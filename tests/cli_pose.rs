@@ -192,23 +192,29 @@ fn bad_input_gives_clear_errors() {
 fn trains_from_a_folder_of_labelled_images() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    ok(&acch(
-        &[
-            "render",
-            "--object",
-            "can",
-            "--views",
-            "grid:60,90:30",
-            "--out",
-            "imgs",
-        ],
-        d,
-    ));
-    let out = ok(&acch(
-        &["train", "--images", "imgs", "--out", "can.acchdb"],
-        d,
-    ));
+    // The can's photographs in `folder` (rolled as `roll` says), trained.
+    let photographed = |folder: &str, roll: &str| {
+        ok(&acch(
+            &[
+                "render",
+                "--object",
+                "can",
+                "--views",
+                "grid:60,90:30",
+                "--roll-deg",
+                roll,
+                "--out",
+                folder,
+            ],
+            d,
+        ));
+        let db = format!("{folder}.acchdb");
+        ok(&acch(&["train", "--images", folder, "--out", &db], d))
+    };
+    let out = photographed("imgs", "0");
     assert!(out.contains("trained 24 views"), "{out}");
+    // Upright photographs: no roll searched at runs.
+    assert!(out.contains("the roll searched within ±0°"), "{out}");
     let labels = std::fs::read_to_string(d.join("imgs/labels.csv")).unwrap();
     let row: Vec<&str> = labels.lines().nth(6).unwrap().split(',').collect();
     let (theta, phi): (f32, f32) = (row[1].parse().unwrap(), row[2].parse().unwrap());
@@ -216,7 +222,7 @@ fn trains_from_a_folder_of_labelled_images() {
         &[
             "estimate",
             "--db",
-            "can.acchdb",
+            "imgs.acchdb",
             "imgs/view_0005.png",
             "--mask",
             "imgs/view_0005_mask.png",
@@ -229,6 +235,23 @@ fn trains_from_a_folder_of_labelled_images() {
         (field(&out, "theta"), field(&out, "phi")),
         (theta, phi),
         "{out}"
+    );
+
+    // Photographs from a camera that rolled: the runs search as far as 95 %
+    // of them roll, rounded up to 15°.
+    let out = photographed("rolled", "40");
+    let labels = std::fs::read_to_string(d.join("rolled/labels.csv")).unwrap();
+    let mut rolls: Vec<f64> = labels
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(9).unwrap().parse::<f64>().unwrap().abs())
+        .collect();
+    rolls.sort_by(f64::total_cmp);
+    let covered = (rolls[rolls.len() * 95 / 100] / 15.0).ceil() * 15.0;
+    assert!(covered >= 15.0, "{rolls:?}");
+    assert!(
+        out.contains(&format!("the roll searched within ±{covered}°")),
+        "{covered} {out}"
     );
 
     let out = acch(

@@ -246,7 +246,7 @@ pub struct ShapeRow {
     pub overlap: f32,
     /// Separation plus overlap.
     pub score: f32,
-    /// The best score of a distinct view.
+    /// The best score of a rival ([`acch_shape::ShapeEstimate::rival`]).
     pub rival_score: f32,
     /// θ, φ, roll of the colour histograms' estimate.
     pub colour_view_deg: [f32; 3],
@@ -554,6 +554,7 @@ pub fn train_on_images(
             rgb,
             mask,
             view_deg: (img.theta_deg, img.phi_deg),
+            roll_deg: img.roll_deg,
             distance_m: img.distance_m,
         })
         .collect();
@@ -581,14 +582,8 @@ pub fn dataset_recipe(
     let mut distances: Vec<f64> = images.iter().map(|i| i.distance_m).collect();
     distances.sort_by(f64::total_cmp);
     let median = distances.get(distances.len() / 2).copied();
-    let mut rolls: Vec<f64> = images.iter().map(|i| i.roll_deg.abs()).collect();
-    rolls.sort_by(f64::total_cmp);
-    let roll = rolls
-        .get((rolls.len() * 95 / 100).min(rolls.len().saturating_sub(1)))
-        .copied()
-        .unwrap_or(0.0);
     acch_train::cache::Recipe {
-        roll_search_deg: ((roll / 15.0).ceil() * 15.0).min(180.0),
+        roll_search_deg: acch_train::cache::roll_search_covering(images.iter().map(|i| i.roll_deg)),
         lowest_theta_deg: Some(((lowest / 10.0).floor() * 10.0) as u8),
         distance_radii: median.map(|d| ((d / object.radius_m()) * 10.0).round() / 10.0),
         ..Default::default()

@@ -54,6 +54,19 @@ pub fn cached_database_path(object: &Object, dir: Option<PathBuf>, imaging: bool
     ))
 }
 
+/// The roll search that covers a camera's views: as far as 95 % of
+/// `rolls` (degrees, either sign) reach, rounded up to 15°, at most 180°;
+/// 0 for none.
+pub fn roll_search_covering(rolls: impl IntoIterator<Item = f64>) -> f64 {
+    let mut rolls: Vec<f64> = rolls.into_iter().map(f64::abs).collect();
+    rolls.sort_by(f64::total_cmp);
+    let roll = rolls
+        .get((rolls.len() * 95 / 100).min(rolls.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    ((roll / 15.0).ceil() * 15.0).min(180.0)
+}
+
 /// What a cached database is trained for beyond the default recipe; each
 /// recipe has a file of its own beside the default one.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -325,6 +338,18 @@ fn cached_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_roll_search_covers_95_percent_of_the_rolls_in_steps_of_15_degrees() {
+        assert_eq!(roll_search_covering([]), 0.0);
+        assert_eq!(roll_search_covering([0.0; 20]), 0.0);
+        // Either sign; of three, the 95th percentile is the largest.
+        assert_eq!(roll_search_covering([-40.0, 3.0, 10.0]), 45.0);
+        let mostly_small = std::iter::repeat_n(10.0, 96).chain([170.0; 4]);
+        assert_eq!(roll_search_covering(mostly_small), 15.0);
+        assert_eq!(roll_search_covering([30.0]), 30.0);
+        assert_eq!(roll_search_covering([179.0]), 180.0);
+    }
 
     #[test]
     fn each_recipe_has_a_file_of_its_own_and_the_old_names_stay() {

@@ -174,6 +174,7 @@ pub fn train_from_folder(dir: &Path, config: &TrainConfig) -> Result<ViewDatabas
             rgb,
             mask,
             view_deg: (row.theta_deg, row.phi_deg),
+            roll_deg: row.roll_deg,
             distance_m: row.distance_m,
         })
         .collect();
@@ -192,12 +193,18 @@ pub struct RealView<'a> {
     pub mask: &'a [u8],
     /// Elevation and azimuth it is seen from, degrees.
     pub view_deg: (f64, f64),
+    /// The camera's roll about its optical axis, degrees.
+    pub roll_deg: f64,
     /// Distance to the object's centre, metres.
     pub distance_m: f64,
 }
 
 /// Histograms and recognition model from photographs of the object, at
-/// their median distance (each view scaled to it).
+/// their median distance (each view scaled to it), searched at runs over
+/// the rolls the photographs show ([`crate::cache::roll_search_covering`]):
+/// a camera that rolled while they were taken rolls while it runs (LM-O,
+/// databases from the even images, with the annotated mask: without the
+/// search 17.8-60.6 % of the odd images failed, with it 15.0-48.6 %).
 pub fn train_real_views(
     name: &str,
     views: &[RealView<'_>],
@@ -225,6 +232,8 @@ pub fn train_real_views(
     let mut db = train_views(name, train_distance as f32, &labelled, config)?;
     db.sections
         .insert(acch_core::FROM_PHOTOGRAPHS_SECTION.to_owned(), Vec::new());
+    let rolls = crate::cache::roll_search_covering(views.iter().map(|v| v.roll_deg));
+    acch_pose::store_roll_search_deg(&mut db, rolls as f32);
     Ok(db)
 }
 

@@ -127,7 +127,8 @@ pub struct Verdict {
     pub overlap: f32,
     /// The least overlap accepted ([`acch_confidence::MIN_OVERLAP`]).
     pub min_overlap: f32,
-    /// The fit's score over its best distinct rival's (NaN: unverified).
+    /// The fit's score over its rival's ([`acch_shape::ShapeEstimate::rival`];
+    /// NaN: unverified).
     pub shape_margin: f32,
     /// The least margin accepted ([`acch_confidence::MIN_SHAPE_MARGIN`]).
     pub min_shape_margin: f32,
@@ -219,7 +220,7 @@ impl Verdict {
         self.detection_margin == f32::INFINITY || self.in_frame >= self.min_in_frame
     }
 
-    /// Whether the fit beats every distinct pose clearly (NaN: no).
+    /// Whether the fit beats every rival clearly (NaN: no).
     pub fn shape_clear(&self) -> bool {
         self.shape_margin >= self.min_shape_margin
     }

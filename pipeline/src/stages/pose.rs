@@ -69,7 +69,8 @@ pub struct ShapeFit {
     /// What chose the fit among the candidates (separation plus overlap).
     pub score: f32,
     /// The best score of a candidate that would fail as an estimate of this
-    /// one; -inf when none did.
+    /// one by more than a neighbour's span
+    /// ([`acch_shape::ShapeSettings::rival_span`]); -inf when none did.
     pub rival_score: f32,
     /// Candidates fitted.
     pub candidates: u32,
@@ -413,8 +414,10 @@ impl Pose {
         };
         let best = s.best();
         let radius_m = shape.model().radius_m;
-        let q = glam::DQuat::from_mat3(&best.pose.matrix3);
-        let t = best.pose.translation * radius_m;
+        // The pose is the best's blended with its neighbours'; the
+        // evidence acceptance judges is the best's own.
+        let q = glam::DQuat::from_mat3(&s.pose.matrix3);
+        let t = s.pose.translation * radius_m;
         let covariance = seed_covariance(&s.covariance, radius_m);
         let fit = ShapeFit {
             rotation: [q.x as f32, q.y as f32, q.z as f32, q.w as f32],

@@ -27,9 +27,10 @@ pub enum PoseError {
     Params(#[from] acch_core::histogram::HistogramError),
 }
 
-/// Section of a [`ViewDatabase`] holding the roll search its confidence
-/// network was trained with (degrees, `f32` little-endian): the network has
-/// seen the responses that search makes, so a run uses it unless told
+/// Section of a [`ViewDatabase`] holding the roll search it was trained
+/// for (degrees, `f32` little-endian): its confidence network's (the
+/// network has seen the responses that search makes), or for a database
+/// from photographs the rolls they show. A run uses it unless told
 /// otherwise. Absent: 0, no search.
 pub const ROLL_SEARCH_SECTION: &str = "roll-search";
 
@@ -44,8 +45,8 @@ pub fn trained_roll_search_deg(db: &ViewDatabase) -> f32 {
         .unwrap_or(0.0)
 }
 
-/// Records in `db` that its confidence network was trained on responses of
-/// a roll search up to `max_deg` (0 removes the record: a database trained
+/// Records in `db` the roll search up to `max_deg` it was trained for
+/// ([`ROLL_SEARCH_SECTION`]; 0 removes the record: a database trained
 /// without the search stays byte-identical to one from before the record).
 pub fn store_roll_search_deg(db: &mut ViewDatabase, max_deg: f32) {
     if max_deg > 0.0 {
