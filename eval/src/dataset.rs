@@ -152,7 +152,7 @@ pub struct ImageRow {
 
 /// The score acch accepts an estimate by: for one its shape chose
 /// (verified 1), the smallest of its contour's share on the region's edge,
-/// its overlap, its margin over every distinct pose and (for a region
+/// its overlap, its margin over its rival and (for a region
 /// recognition found) its contour's share in the frame, each over its bar;
 /// else the
 /// network's confidence over its threshold. Accepted means this is at

@@ -1279,7 +1279,7 @@ impl PipelineConfig {
     }
 
     /// The roll search of a run over `db`: `estimate.roll_search_deg`, or
-    /// the one its confidence network was trained with.
+    /// the one `db` was trained for ([`acch_pose::ROLL_SEARCH_SECTION`]).
     fn roll_search(&self, db: &ViewDatabase) -> f32 {
         self.estimate
             .roll_search_deg
@@ -1287,16 +1287,17 @@ impl PipelineConfig {
     }
 
     /// Warns, once per run (the launcher calls it), when
-    /// `estimate.roll_search_deg` differs from the search `db`'s confidence
-    /// network was trained with: allowed, but the network then rates
-    /// responses unlike its training's.
+    /// `estimate.roll_search_deg` differs from the search `db` was trained
+    /// for: allowed, but its confidence network then rates responses
+    /// unlike its training's, and a database from photographs searches
+    /// rolls they did not show.
     pub fn warn_on_untrained_roll_search(&self, db: &ViewDatabase) {
         let trained = acch_pose::trained_roll_search_deg(db);
         if let Some(deg) = self.estimate.roll_search_deg
             && deg as f32 != trained
         {
             tracing::warn!(
-                "estimate.roll_search_deg = {deg}, but the confidence network of '{}' was trained with {trained}: `acch train --roll-search-deg {deg}` trains one for it",
+                "estimate.roll_search_deg = {deg}, but '{}' was trained for {trained} (its confidence network, or the rolls of its photographs): `acch train --roll-search-deg {deg}` trains one for it",
                 db.object
             );
         }

@@ -207,8 +207,8 @@ pub struct ResultJson<'a> {
     pub overlap: Option<f32>,
     /// The least overlap accepted, when verified.
     pub min_overlap: Option<f32>,
-    /// The fit's score over its best distinct rival's, when verified
-    /// (null: no distinct candidate).
+    /// The fit's score over its rival's (the best candidate beyond 1.5
+    /// failure tolerances), when verified (null: no such candidate).
     pub shape_margin: Option<f32>,
     /// The least margin accepted, when verified.
     pub min_shape_margin: Option<f32>,

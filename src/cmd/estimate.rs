@@ -130,8 +130,8 @@ pub fn load_input(input: &Input, debug_dir: Option<&Path>) -> Result<Option<Load
         }
     };
     Ok(Some(Loaded {
-        // The search the confidence network was trained with (none for a
-        // database trained without it).
+        // The search the database was trained for (its confidence
+        // network's, or the rolls of its photographs; none otherwise).
         estimator: {
             let search = acch_pose::trained_roll_search_deg(&db);
             PoseEstimator::new(db)?.with_roll_search(search)

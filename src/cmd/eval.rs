@@ -561,10 +561,12 @@ fn run_dataset(args: EvalArgs) -> Result<()> {
             let config = args.histogram.train_config()?;
             let symmetry = symmetry.clone().unwrap_or_else(acch_shape::Symmetry::none);
             let db = dataset::train_on_images(&train, object, &symmetry, &config)?;
-            eprintln!(
-                "derived: the roll searched within ±{}°: the roll of 95 % of the training photographs",
-                acch_pose::trained_roll_search_deg(&db)
-            );
+            if args.roll_search_deg.is_none() {
+                eprintln!(
+                    "derived: the roll searched within ±{}°: the roll of 95 % of the training photographs",
+                    acch_pose::trained_roll_search_deg(&db)
+                );
+            }
             (test, Some(db))
         }
         _ => (images, None),

@@ -165,10 +165,6 @@ pub fn run(args: TrainArgs) -> Result<()> {
         Some(dir) => {
             let db = train_from_folder(dir, &config)?;
             println!(
-                "the roll searched within ±{}° at runs: the roll of 95 % of the photographs",
-                acch_pose::trained_roll_search_deg(&db)
-            );
-            println!(
                 "no confidence network (labelled images give no failures to learn from): run it with `acch run --unrated`"
             );
             db
@@ -218,6 +214,8 @@ pub fn run(args: TrainArgs) -> Result<()> {
         println!(
             "roll search ±{search}° recorded: acch run, estimate and eval search the roll with this database"
         );
+    } else if args.images.is_some() {
+        println!("no roll search recorded: the photographs are upright");
     }
     Ok(())
 }

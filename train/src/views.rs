@@ -204,7 +204,7 @@ pub struct RealView<'a> {
 /// the rolls the photographs show ([`crate::cache::roll_search_covering`]):
 /// a camera that rolled while they were taken rolls while it runs (LM-O,
 /// databases from the even images, with the annotated mask: without the
-/// search 17.8-60.6 % of the odd images failed, with it 15.0-48.6 %).
+/// search 17.8-60.6 % of the odd images failed, with it 15.0-47.6 %).
 pub fn train_real_views(
     name: &str,
     views: &[RealView<'_>],

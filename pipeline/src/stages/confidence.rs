@@ -138,8 +138,8 @@ pub struct Verdict {
     /// ([`acch_confidence::MIN_IN_FRAME`]).
     pub min_in_frame: f32,
     /// Chosen by the shape (verified 1): the contour on the region's edge
-    /// and the silhouette covering the region, a clear margin over every
-    /// distinct pose, the contour in the frame (a region recognition
+    /// and the silhouette covering the region, a clear margin over its
+    /// rival ([`acch_shape::ShapeEstimate::rival`]), the contour in the frame (a region recognition
     /// found), and found at or above recognition's threshold. Otherwise
     /// the colour rules: `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
@@ -293,7 +293,7 @@ pub struct Rules {
     pub min_region_edge: f32,
     /// The least overlap of a verified silhouette with the region.
     pub min_overlap: f32,
-    /// The least margin of a verified fit over its best distinct rival.
+    /// The least margin of a verified fit over its rival.
     pub min_shape_margin: f32,
     /// The least share of a verified contour in the frame, for a region
     /// recognition found.

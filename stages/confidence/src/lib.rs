@@ -109,9 +109,10 @@ pub const MIN_IN_FRAME: f32 = 0.98;
 /// ...and only when its score (what it explains of the image) beats the
 /// best candidate that would be a failure if it were right, the object's
 /// symmetries allowed for, by this much: another pose that explains the
-/// image about as well makes it a guess. A candidate within 1.5 failure
-/// tolerances of it is no such rival (`acch_shape::ShapeSettings::rival_span`):
-/// as good and that near, it says the truth lies between the two.
+/// image about as well makes it a guess. A candidate within
+/// `acch_shape::ShapeSettings::rival_span` failure tolerances of it is no
+/// such rival: as good and that near, it says the truth lies between the
+/// two.
 pub const MIN_SHAPE_MARGIN: f32 = 0.3;
 
 /// A detection under recognition's threshold (its margin below this) is

@@ -109,7 +109,8 @@ pub struct ShapeEstimate {
     /// ([`crate::lines::fit_covariance`]).
     pub covariance: [[f64; 6]; 6],
     /// The estimate: the best pose blended with its neighbours'
-    /// ([`ShapeSettings::blend_score_scale`]).
+    /// ([`ShapeSettings::blend_score_scale`]), or the best alone when
+    /// [`anchored`](Self::anchored). Its evidence is the best's.
     pub pose: DAffine3,
 }
 
@@ -325,6 +326,9 @@ impl ShapeEstimator {
             t_sum += w * c.pose.translation;
             w_sum += w;
         }
+        if !(w_sum.is_finite() && w_sum > 0.0) {
+            return best.pose;
+        }
         let q = glam::DQuat::from_vec4(q_sum).normalize();
         DAffine3::from_mat3_translation(glam::DMat3::from_quat(q), t_sum / w_sum)
     }
@@ -506,7 +510,13 @@ impl ShapeEstimator {
         scored[1..].sort_by(|a, b| b.score.total_cmp(&a.score));
         let span = self.settings.rival_span;
         let rival = (1..scored.len()).find(|&i| self.apart(&scored[i].pose, &best, span));
-        let pose = self.blend(&scored, span);
+        // Colours that place the object are the estimate: the shape only
+        // fitted them.
+        let pose = if anchored {
+            best
+        } else {
+            self.blend(&scored, span)
+        };
         let covariance = fit_covariance(
             &self.model,
             image,
@@ -682,6 +692,19 @@ mod tests {
             );
             assert!(a.scored.len() > 11, "{}", a.scored.len());
             assert_eq!(a, b, "at θ {theta} φ {phi} roll {roll}");
+            // The estimate names its rival beyond the span and blends the
+            // best with what lies within it.
+            let best = a.best().pose;
+            if let Some(r) = a.rival {
+                assert!(alone.apart(&a.scored[r].pose, &best, 1.5));
+                assert!((1..r).all(|i| !alone.apart(&a.scored[i].pose, &best, 1.5)));
+            }
+            let blended = if a.anchored {
+                best
+            } else {
+                alone.blend(&a.scored, 1.5)
+            };
+            assert_eq!(a.pose, blended);
         }
     }
 }
