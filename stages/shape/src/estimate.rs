@@ -294,11 +294,7 @@ impl ShapeEstimator {
         let (mut q_sum, mut t_sum, mut w_sum) = (glam::DVec4::ZERO, glam::DVec3::ZERO, 0.0);
         let mut counted: Vec<glam::DQuat> = Vec::new();
         for c in scored {
-            // A neighbour by view may be the view upside down (the roll
-            // half a turn off): only a near rotation blends.
-            if self.apart(&c.pose, &best.pose, span)
-                || self.symmetry.angle_deg(&c.pose.matrix3, &best.pose.matrix3) > BLEND_TURN_DEG
-            {
+            if self.apart(&c.pose, &best.pose, span) {
                 continue;
             }
             let nearest = self
@@ -307,6 +303,11 @@ impl ShapeEstimator {
                 .map(|r| glam::DQuat::from_mat3(&r))
                 .max_by(|a, b| a.dot(q_best).abs().total_cmp(&b.dot(q_best).abs()))
                 .expect("a rotation is its own equivalent");
+            // A neighbour by view may be the view upside down (the roll
+            // half a turn off): only a near rotation blends.
+            if nearest.angle_between(q_best).to_degrees() > BLEND_TURN_DEG {
+                continue;
+            }
             let q = if nearest.dot(q_best) < 0.0 {
                 -nearest
             } else {
