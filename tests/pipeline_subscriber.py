@@ -105,8 +105,16 @@ def main():
         shape_margin = r.get("shape_margin")
         clear = shape_margin is None or (r.get("min_shape_margin") is not None
                                          and shape_margin >= r["min_shape_margin"])
+        # The contour in the frame, for a region recognition found (the
+        # bar is sent only then).
+        in_frame, min_in_frame = r.get("in_frame"), r.get("min_in_frame")
+        framed = min_in_frame is None or (in_frame is not None and in_frame >= min_in_frame)
+        # No lower than the database's views (the bar is sent when the
+        # shape chose the pose and the database's lowest view is known).
+        min_theta, est = r.get("min_theta_deg"), r.get("estimate_deg")
+        in_range = min_theta is None or (est is not None and est[0] >= min_theta)
         if verified == 1:
-            should = agrees and covers and clear and not under
+            should = agrees and covers and clear and framed and in_range and not under
         elif verified == 2:
             should = colour and agrees
         else:

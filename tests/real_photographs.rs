@@ -99,16 +99,16 @@ fn ape_with_the_annotated_mask_accepts_few_wrong_and_writes_bop_results() {
     );
     // LM-O shows the ape in 187 images.
     assert_eq!(n, 187.0);
-    // Measured 2.9 % (2 of 68); the old colour-only pipeline: 79-100 %.
+    // Measured 2.0 % (2 of 101); the old colour-only pipeline: 79-100 %.
     assert!(wrong <= 0.05, "wrong among accepted {wrong}");
-    // Measured 35.3 % (the first round of the shape: 23 %); the
-    // colour-only pipeline: 0-6 %.
+    // Measured 52.9 % (the first round of the shape: 23 %, the fourth
+    // 35.3 %); the colour-only pipeline: 0-6 %.
     assert!(
-        f(&r, "accepted_right_rate") >= 0.3,
+        f(&r, "accepted_right_rate") >= 0.45,
         "accepted and right {}",
         f(&r, "accepted_right_rate")
     );
-    // Before acceptance: measured 31.6 % failures (the colour-only
+    // Before acceptance: measured 27.8 % failures (the colour-only
     // pipeline: 89-100 %).
     assert!(f(&r, "failure_rate") <= 0.4);
     // The visible-share bands sum to every instance.
@@ -213,10 +213,10 @@ fn the_can_from_its_own_photographs_is_estimated_as_well_as_from_its_mesh() {
         f(&r, "acc_failure_rate")
     );
     assert_eq!(f(&r, "n"), 107.0);
-    // Measured 18.7 % failures, 34.6 % accepted and right, none wrong
-    // (from the mesh, on the same odd images: 24.3 %, 35.5 %, none).
-    assert!(f(&r, "failure_rate") <= 0.3);
-    assert!(f(&r, "accepted_right_rate") >= 0.25);
+    // Measured 15.0 % failures, 40.2 % accepted and right, none wrong
+    // (from the mesh, on the same odd images: 23.4 %, 35.5 %, none).
+    assert!(f(&r, "failure_rate") <= 0.25);
+    assert!(f(&r, "accepted_right_rate") >= 0.3);
     assert!(f(&r, "acc_failure_rate") <= 0.05);
 }
 
@@ -239,8 +239,8 @@ fn the_cans_shape_overrules_its_strong_but_wrong_colours() {
     // The can's colours match its mesh's at up to 0.96 in views half a
     // turn away. Anchored by them, 44 instances failed, all of those
     // matched at 0.65 or more, and 39.2 % of all; with the shape
-    // overruling them by the acceptance margin, measured 24.1 % failures
-    // and 14 of the 44 still wrong.
+    // overruling them by the acceptance margin, measured 22.6 % failures
+    // and 12 of the 44 still wrong.
     assert!(f(&r, "failure_rate") <= 0.3, "{}", f(&r, "failure_rate"));
     assert!(
         anchored_wrong <= 25,
@@ -279,7 +279,8 @@ fn glue_is_scored_up_to_its_declared_half_turn() {
         right_without < right_with,
         "accepted and right {right_with} with the symmetry, {right_without} without"
     );
-    // Measured 2.0 % (1 of 51) wrong among accepted with it.
+    // Measured 0 of 63 wrong among accepted with it (2 of 60 before the
+    // bar on views below the database's).
     assert!(f(&with, "acc_failure_rate") <= 0.05);
     // The independent reader, allowing the half turn, finds the seeds'
     // errors acch reports.

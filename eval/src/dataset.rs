@@ -153,7 +153,8 @@ pub struct ImageRow {
 /// The score acch accepts an estimate by: for one its shape chose
 /// (verified 1), the smallest of its contour's share on the region's edge,
 /// its overlap, its margin over its rival and (for a region
-/// recognition found) its contour's share in the frame, each over its bar;
+/// recognition found) its contour's share in the frame, each over its bar
+/// (0 for a view below the database's);
 /// else the
 /// network's confidence over its threshold. Accepted means this is at
 /// least 1, and the object was found at or above recognition's threshold
@@ -168,6 +169,12 @@ pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
                 v.in_frame / v.min_in_frame
             } else {
                 f32::INFINITY
+            })
+            // Below the database's views: no score can accept it.
+            .min(if v.shape_in_range() {
+                f32::INFINITY
+            } else {
+                0.0
             })
     } else if v.confidence.is_finite() && v.threshold > 0.0 {
         v.confidence / v.threshold
@@ -244,7 +251,7 @@ pub struct ShapeRow {
     pub separation: f32,
     /// The silhouette against the region.
     pub overlap: f32,
-    /// Separation plus overlap.
+    /// What ranked the best candidate ([`acch_shape::rank_score`]).
     pub score: f32,
     /// The best score of a rival ([`acch_shape::ShapeEstimate::rival`]).
     pub rival_score: f32,

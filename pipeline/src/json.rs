@@ -217,6 +217,9 @@ pub struct ResultJson<'a> {
     /// The least share accepted, when verified and recognition found the
     /// region (a given mask needs none).
     pub min_in_frame: Option<f32>,
+    /// The lowest elevation accepted for a pose the shape chose, degrees
+    /// (the database's lowest view less 5°), when it chose it.
+    pub min_theta_deg: Option<f32>,
     /// The object's pose the shape fitted, when verified: camera from
     /// object, translation (metres) and rotation (x, y, z, w).
     pub fitted_pose: Option<([f32; 3], [f32; 4])>,
@@ -355,6 +358,9 @@ impl<'a> ResultJson<'a> {
             min_in_frame: verdict
                 .filter(|v| v.verified > 0 && v.detection_margin.is_finite())
                 .map(|v| v.min_in_frame),
+            min_theta_deg: verdict
+                .filter(|v| v.verified == 1 && v.min_theta_deg.is_finite())
+                .map(|v| v.min_theta_deg),
             fitted_pose: m
                 .pose()
                 .done()

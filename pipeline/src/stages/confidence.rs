@@ -76,6 +76,8 @@ pub struct ShapeEvidence {
     pub margin: f32,
     /// Share of the fitted contour in the frame.
     pub in_frame: f32,
+    /// The estimate's elevation, degrees.
+    pub theta_deg: f32,
     /// The colour histograms' view is the estimate and the fit placed it
     /// ([`crate::stages::ShapeFit::anchored`]).
     pub anchored: bool,
@@ -137,10 +139,16 @@ pub struct Verdict {
     /// The least share accepted for a region recognition found
     /// ([`acch_confidence::MIN_IN_FRAME`]).
     pub min_in_frame: f32,
+    /// The estimate's elevation, degrees (NaN: unverified).
+    pub theta_deg: f32,
+    /// The lowest elevation accepted: the database's lowest view less
+    /// [`acch_confidence::BELOW_LOWEST_VIEW_DEG`].
+    pub min_theta_deg: f32,
     /// Chosen by the shape (verified 1): the contour on the region's edge
     /// and the silhouette covering the region, a clear margin over its
     /// rival ([`acch_shape::ShapeEstimate::rival`]), the contour in the frame (a region recognition
-    /// found), and found at or above recognition's threshold. Otherwise
+    /// found), the view no lower than the database covers, and found at or
+    /// above recognition's threshold. Otherwise
     /// the colour rules: `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
     /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint); and
@@ -180,6 +188,8 @@ impl Verdict {
             min_shape_margin: rules.min_shape_margin,
             in_frame: evidence.shape.map_or(f32::NAN, |s| s.in_frame),
             min_in_frame: rules.min_in_frame,
+            theta_deg: evidence.shape.map_or(f32::NAN, |s| s.theta_deg),
+            min_theta_deg: rules.min_theta_deg,
             accepted: false,
         };
         let colour_rules = evidence.confidence >= rules.threshold
@@ -193,6 +203,7 @@ impl Verdict {
                     && v.shape_covers()
                     && v.shape_clear()
                     && v.shape_in_frame()
+                    && v.shape_in_range()
                     && !v.under_threshold()
             }
             2 => colour_rules && v.shape_agrees(),
@@ -218,6 +229,12 @@ impl Verdict {
     /// for the object however much of it the frame cuts.
     pub fn shape_in_frame(&self) -> bool {
         self.detection_margin == f32::INFINITY || self.in_frame >= self.min_in_frame
+    }
+
+    /// Whether the estimate's view lies no lower than the database covers
+    /// (NaN: no).
+    pub fn shape_in_range(&self) -> bool {
+        self.theta_deg >= self.min_theta_deg
     }
 
     /// Whether the fit beats every rival clearly (NaN: no).
@@ -298,10 +315,13 @@ pub struct Rules {
     /// The least share of a verified contour in the frame, for a region
     /// recognition found.
     pub min_in_frame: f32,
+    /// The lowest elevation of a verified estimate accepted, degrees.
+    pub min_theta_deg: f32,
 }
 
 impl Rules {
-    /// The default bars with the network's `threshold`.
+    /// The default bars with the network's `threshold`, for a database
+    /// whose lowest view is unknown (any elevation accepted).
     pub fn with_threshold(threshold: f32) -> Self {
         Rules {
             threshold,
@@ -312,6 +332,7 @@ impl Rules {
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
+            min_theta_deg: f32::NEG_INFINITY,
         }
     }
 }
@@ -403,6 +424,9 @@ pub struct Confidence {
     min_overlap: f32,
     min_shape_margin: f32,
     min_in_frame: f32,
+    /// The database's lowest view less
+    /// [`acch_confidence::BELOW_LOWEST_VIEW_DEG`], degrees.
+    min_theta_deg: f32,
     /// The explicit unrated mode: nothing is accepted, even verified.
     unrated: bool,
 }
@@ -456,6 +480,12 @@ impl Confidence {
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
+            min_theta_deg: db
+                .views()
+                .iter()
+                .map(|v| v.theta_deg)
+                .fold(f32::INFINITY, f32::min)
+                - acch_confidence::BELOW_LOWEST_VIEW_DEG,
             unrated: false,
         }
     }
@@ -523,13 +553,16 @@ impl Stage for Confidence {
             return Ok(Rating::Skipped);
         };
         let pose = input.pose.done();
-        let shape = pose.and_then(|p| p.shape.done()).map(|f| ShapeEvidence {
-            region_edge: f.region_edge,
-            overlap: f.overlap,
-            margin: f.score - f.rival_score,
-            in_frame: f.in_frame,
-            anchored: f.anchored == 1,
-        });
+        let shape = pose
+            .and_then(|p| p.shape.done().map(|f| (p, f)))
+            .map(|(p, f)| ShapeEvidence {
+                region_edge: f.region_edge,
+                overlap: f.overlap,
+                margin: f.score - f.rival_score,
+                in_frame: f.in_frame,
+                theta_deg: p.theta_deg,
+                anchored: f.anchored == 1,
+            });
         // The shape judges what it chose; colours that placed the object
         // themselves (anchored) need the network too.
         let shape_judges = shape.is_some_and(|s| !s.anchored);
@@ -586,6 +619,7 @@ impl Stage for Confidence {
             min_overlap: self.min_overlap,
             min_shape_margin: self.min_shape_margin,
             min_in_frame: self.min_in_frame,
+            min_theta_deg: self.min_theta_deg,
         };
         Ok(Rating::Rated(Verdict::new(evidence, rules)))
     }
@@ -635,6 +669,7 @@ mod tests {
                         overlap,
                         margin,
                         in_frame,
+                        theta_deg: 30.0,
                         anchored: false,
                     }),
                     ..clear(f32::NAN, f32::NAN)
@@ -687,6 +722,34 @@ mod tests {
             judged_in(0.95, 0.85, 0.5, f32::INFINITY, 0.6).accepted,
             "a given mask"
         );
+        // A view below what the database covers is no pose it vouches
+        // for: its lowest view (20°) less 5° is the bar.
+        let at = |theta_deg| {
+            Verdict::new(
+                Evidence {
+                    confidence: f32::NAN,
+                    rival: f32::NAN,
+                    shape: Some(ShapeEvidence {
+                        region_edge: 0.95,
+                        overlap: 0.85,
+                        margin: 0.5,
+                        in_frame: 1.0,
+                        theta_deg,
+                        anchored: false,
+                    }),
+                    ..clear(f32::NAN, f32::NAN)
+                },
+                Rules {
+                    min_theta_deg: 20.0 - acch_confidence::BELOW_LOWEST_VIEW_DEG,
+                    ..rules()
+                },
+            )
+        };
+        assert!(at(15.0).accepted && at(40.0).accepted, "{:?}", at(15.0));
+        for theta_deg in [14.9, -15.0, f32::NAN] {
+            let v = at(theta_deg);
+            assert!(!v.accepted && !v.shape_in_range(), "{v:?}");
+        }
         // Anchored by the colours: the colour rules and the shape's
         // agreement both, so no network rating means rejected.
         let anchored = |confidence| {
@@ -697,6 +760,7 @@ mod tests {
                         overlap: 0.85,
                         margin: f32::NAN,
                         in_frame: 1.0,
+                        theta_deg: 30.0,
                         anchored: true,
                     }),
                     ..clear(confidence, 0.5)
@@ -713,6 +777,7 @@ mod tests {
                     overlap: 0.6,
                     margin: f32::NAN,
                     in_frame: 1.0,
+                    theta_deg: 30.0,
                     anchored: true,
                 }),
                 ..clear(0.9, 0.5)

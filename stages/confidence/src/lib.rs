@@ -106,6 +106,18 @@ pub const MIN_OVERLAP: f32 = 0.7;
 /// accepted estimates with the annotated mask reach 0.64-1.
 pub const MIN_IN_FRAME: f32 = 0.98;
 
+/// ...and only when its elevation lies at most this many degrees below
+/// the lowest view the database was trained for: the database covers the
+/// elevations the camera sees, so a view below them is no pose it can
+/// vouch for. On LM-O's development objects with the annotated mask, the
+/// wrong estimates this removed were the glue seen from below its
+/// horizontal plane where the camera looked from above (the two outlines
+/// are mirror images); no right accepted estimate lay below the lowest
+/// view (docs/real-photographs.md, "Sixth round"). Half the failure
+/// tolerance in elevation leaves room for a right fit just under the
+/// lowest view.
+pub const BELOW_LOWEST_VIEW_DEG: f32 = 5.0;
+
 /// ...and only when its score (what it explains of the image) beats the
 /// best candidate that would be a failure if it were right, the object's
 /// symmetries allowed for, by this much: another pose that explains the
