@@ -61,9 +61,11 @@ def main():
     accepted = sum(1 for r in results.values() if r["accepted"])
     # Each verdict against its own bars, from the message alone (the bars
     # travel with every verdict). An estimate the shape chose (verified 1)
-    # is accepted when its contour lies on the region's edge, it beats every
-    # distinct pose by the margin and it was found at or above recognition's
-    # threshold. Otherwise the colour rules: rated at or above the
+    # is accepted when its contour lies on the region's edge, its
+    # silhouette covers the region, it beats its rival by the margin, its
+    # contour lies in the frame (for a region recognition found), its
+    # elevation is not below the database's bar, and it was found at or
+    # above recognition's threshold. Otherwise the colour rules: rated at or above the
     # threshold, no rival above its bar, no broad crest, no view placing
     # its region better, not faint; and when the shape fitted the colours'
     # estimate (verified 2), its contour on the region's edge too. An
@@ -112,7 +114,8 @@ def main():
         # No lower than the database's views (the bar is sent when the
         # shape chose the pose and the database's lowest view is known).
         min_theta, est = r.get("min_theta_deg"), r.get("estimate_deg")
-        in_range = min_theta is None or (est is not None and est[0] >= min_theta)
+        in_range = min_theta is None or (
+            est is not None and est[0] is not None and est[0] >= min_theta)
         if verified == 1:
             should = agrees and covers and clear and framed and in_range and not under
         elif verified == 2:

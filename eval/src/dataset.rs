@@ -154,7 +154,7 @@ pub struct ImageRow {
 /// (verified 1), the smallest of its contour's share on the region's edge,
 /// its overlap, its margin over its rival and (for a region
 /// recognition found) its contour's share in the frame, each over its bar
-/// (0 for a view below the database's);
+/// (0 for an elevation more than 5° below the database's lowest view);
 /// else the
 /// network's confidence over its threshold. Accepted means this is at
 /// least 1, and the object was found at or above recognition's threshold
@@ -170,7 +170,8 @@ pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
             } else {
                 f32::INFINITY
             })
-            // Below the database's views: no score can accept it.
+            // Below the bar on elevation (the database's lowest view less
+            // 5°): no score can accept it.
             .min(if v.shape_in_range() {
                 f32::INFINITY
             } else {

@@ -1,12 +1,16 @@
 //! Confidence: judges each estimate by one policy over its evidence
 //! ([`Verdict::new`]).
 //!
-//! An estimate the object's shape verified (the pose stage fitted the
+//! An estimate the object's shape chose (the pose stage fitted the
 //! mesh's contour to the image) is accepted only when its contour lies on
-//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), it explains
-//! the image clearly better than every candidate that would be a failure
-//! if it were right ([`acch_confidence::MIN_SHAPE_MARGIN`]), and the object
-//! was found at or above recognition's threshold. Geometry decides on real
+//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), its
+//! silhouette covers the region ([`acch_confidence::MIN_OVERLAP`]), it
+//! explains the image clearly better than its rival
+//! ([`acch_confidence::MIN_SHAPE_MARGIN`]), its contour lies in the frame
+//! for a region recognition found ([`acch_confidence::MIN_IN_FRAME`]),
+//! its elevation is at most [`acch_confidence::BELOW_LOWEST_VIEW_DEG`]
+//! below the database's lowest view, and the object was found at or above
+//! recognition's threshold. Geometry decides on real
 //! photographs, where the colour rules below accepted 90 % wrong.
 //!
 //! An unverified estimate (a database without a shape, or a frame whose
@@ -231,8 +235,9 @@ impl Verdict {
         self.detection_margin == f32::INFINITY || self.in_frame >= self.min_in_frame
     }
 
-    /// Whether the estimate's view lies no lower than the database covers
-    /// (NaN: no).
+    /// Whether the estimate's elevation reaches the bar: the database's
+    /// lowest view less [`acch_confidence::BELOW_LOWEST_VIEW_DEG`] (NaN:
+    /// no).
     pub fn shape_in_range(&self) -> bool {
         self.theta_deg >= self.min_theta_deg
     }
@@ -484,8 +489,11 @@ impl Confidence {
                 .views()
                 .iter()
                 .map(|v| v.theta_deg)
-                .fold(f32::INFINITY, f32::min)
-                - acch_confidence::BELOW_LOWEST_VIEW_DEG,
+                .reduce(f32::min)
+                // No views, no range known: any elevation.
+                .map_or(f32::NEG_INFINITY, |lowest| {
+                    lowest - acch_confidence::BELOW_LOWEST_VIEW_DEG
+                }),
             unrated: false,
         }
     }

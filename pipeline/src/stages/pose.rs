@@ -82,7 +82,8 @@ pub struct ShapeFit {
     /// θ, φ and roll the colour histograms estimated, degrees (NaN when
     /// they made none).
     pub colour_view_deg: [f32; 3],
-    /// The pose's covariance from the fit, over `(tx, ty, tz, rx, ry, rz)`
+    /// The pose's covariance from the fit and the spread of the poses
+    /// blended into it ([`acch_shape::ShapeEstimate::covariance`]), over `(tx, ty, tz, rx, ry, rz)`
     /// of a left perturbation in the camera frame (metres, radians; the
     /// seed's convention, `acch_seeding`), upper triangle row by row.
     pub covariance: [f32; 21],

@@ -385,7 +385,8 @@ impl Seeding {
     }
 
     /// The seed of an accepted estimate: the pose the object's shape
-    /// fitted, with the fit's covariance, when the shape chose the view;
+    /// fitted, with its covariance (the fit's and the blend's spread), when
+    /// the shape chose the view;
     /// else (the colours placed the object, or there is no shape) the view
     /// placed on the region's ray at its distance.
     fn seed_of(
