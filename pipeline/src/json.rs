@@ -580,3 +580,28 @@ impl crate::observe::Observe for JsonLines {
             })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The recording's result schema (what a Foxglove viewer checks
+    /// message paths against) declares every field a result carries.
+    #[test]
+    fn the_recorded_result_schema_declares_every_field_of_a_result() {
+        let mut writer = JsonWriter::default();
+        let (json, _) = writer.write("fruitbox", &Seeded::default()).unwrap();
+        let result: serde_json::Value = serde_json::from_slice(json).unwrap();
+        let schema: serde_json::Value = serde_json::from_str(acch_record::RESULT_SCHEMA).unwrap();
+        let declared = schema["properties"].as_object().unwrap();
+        let fields = result.as_object().unwrap();
+        assert!(fields.contains_key("min_theta_deg"), "{fields:?}");
+        // The trail (a stage name and two times per stage) has no single
+        // item type: the schema describes it and does not list it.
+        let missing: Vec<&String> = fields
+            .keys()
+            .filter(|k| *k != "trail" && !declared.contains_key(*k))
+            .collect();
+        assert!(missing.is_empty(), "undeclared: {missing:?}");
+    }
+}

@@ -26,7 +26,7 @@
 pub mod proto;
 mod schema;
 
-pub use schema::{FrameInfo, FrameTruth, LatencyJson, ResponseJson};
+pub use schema::{FrameInfo, FrameTruth, LatencyJson, RESULT_SCHEMA, ResponseJson};
 
 use mcap::sans_io::LinearReaderOptions;
 use mcap::{McapError, WriteOptions, records::MessageHeader};
