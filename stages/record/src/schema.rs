@@ -137,12 +137,13 @@ pub const LATENCY_SCHEMA: &str = r#"{
 
 /// JSON schema of `acch.Result` (the JSON published on zenoh). Fields that
 /// may be null are declared with their non-null type; `trail` (pairs of a
-/// stage name and two times) has no single item type and is described but
-/// not listed.
+/// stage name and two times) and `fitted_pose` (a translation and a
+/// quaternion) have no single item type, which Foxglove needs, and are
+/// described but not listed.
 pub const RESULT_SCHEMA: &str = r#"{
   "$schema": "https://json-schema.org/draft/2020-12/schema",
   "title": "acch.Result",
-  "description": "Final result of one frame, as published on <prefix>/<object>/result. Also: trail, [[stage, [received_ns, published_ns]]] per stage",
+  "description": "Final result of one frame, as published on <prefix>/<object>/result. Also: trail, [[stage, [received_ns, published_ns]]] per stage; fitted_pose, the pose the shape fitted, camera from object, [[tx, ty, tz] metres, [x, y, z, w]], null unless verified",
   "type": "object",
   "properties": {
     "object": {"type": "string"},
@@ -174,7 +175,6 @@ pub const RESULT_SCHEMA: &str = r#"{
     "in_frame": {"type": "number", "description": "share of the fitted contour in the frame; null unless verified"},
     "min_in_frame": {"type": "number", "description": "null unless verified with a region recognition found"},
     "min_theta_deg": {"type": "number", "description": "the lowest elevation accepted for a pose the shape chose (the database's lowest view less 5 degrees), against estimate_deg[0]; null unless the shape chose it"},
-    "fitted_pose": {"type": "array", "description": "the pose the shape fitted, camera from object: [[tx, ty, tz] metres, [x, y, z, w]]; null unless verified", "items": {"type": "array", "items": {"type": "number"}}},
     "stamp": {"type": "object", "properties": {
       "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
       "wall_ns": {"type": "integer"}}},
