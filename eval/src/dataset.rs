@@ -706,11 +706,8 @@ pub fn evaluate(
         )));
     }
     let (theta_min, theta_max) = db
-        .views()
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v.theta_deg), hi.max(v.theta_deg))
-        });
+        .theta_range_deg()
+        .unwrap_or((f32::INFINITY, f32::NEG_INFINITY));
     let build = |size: (u32, u32)| -> Result<Sized, EvalError> {
         let settings = StageSettings {
             width: size.0,

@@ -485,13 +485,10 @@ impl Confidence {
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
+            // No views, no range known: any elevation.
             min_theta_deg: db
-                .views()
-                .iter()
-                .map(|v| v.theta_deg)
-                .reduce(f32::min)
-                // No views, no range known: any elevation.
-                .map_or(f32::NEG_INFINITY, |lowest| {
+                .theta_range_deg()
+                .map_or(f32::NEG_INFINITY, |(lowest, _)| {
                     lowest - acch_confidence::BELOW_LOWEST_VIEW_DEG
                 }),
             unrated: false,

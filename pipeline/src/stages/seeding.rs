@@ -282,10 +282,8 @@ impl Seeding {
             covariance: CovarianceModel::default(),
             filter: ViewFilter::new(FilterConfig::default())?,
             lowest_theta_deg: db
-                .views()
-                .iter()
-                .map(|v| v.theta_deg as f64)
-                .fold(f64::INFINITY, f64::min),
+                .theta_range_deg()
+                .map_or(f64::INFINITY, |(lowest, _)| lowest as f64),
             last_arm: None,
             centre_offsets: CentreOffsets::new(db),
             translation_covariance: DMat3::ZERO,

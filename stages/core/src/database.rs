@@ -162,6 +162,15 @@ impl ViewDatabase {
         &self.views
     }
 
+    /// The lowest and the highest elevation of the views, degrees (`None`:
+    /// no views).
+    pub fn theta_range_deg(&self) -> Option<(f32, f32)> {
+        self.views.iter().fold(None, |range, v| {
+            let (lo, hi) = range.unwrap_or((v.theta_deg, v.theta_deg));
+            Some((lo.min(v.theta_deg), hi.max(v.theta_deg)))
+        })
+    }
+
     /// Histogram of view `i`.
     pub fn histogram(&self, i: usize) -> &[f32] {
         let n = self.params.len();
@@ -596,6 +605,13 @@ mod tests {
             }
         });
         assert_eq!(ViewDatabase::load(&path).unwrap(), db);
+    }
+
+    #[test]
+    fn the_theta_range_spans_the_views_and_is_none_without_any() {
+        assert_eq!(sample().theta_range_deg(), Some((45.0, 90.0)));
+        let empty = ViewDatabase::new("thing", sample().palette, sample().params, 5.0);
+        assert_eq!(empty.theta_range_deg(), None);
     }
 
     #[test]

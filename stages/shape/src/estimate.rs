@@ -151,6 +151,16 @@ struct Blend {
     spread: [[f64; 6]; 6],
 }
 
+impl Blend {
+    /// `pose` alone, blended with nothing.
+    fn alone(pose: DAffine3) -> Self {
+        Blend {
+            pose,
+            spread: [[0.0; 6]; 6],
+        }
+    }
+}
+
 /// The blend's neighbours turn from the best by at most this, degrees.
 const BLEND_TURN_DEG: f64 = 30.0;
 /// Fitted poses nearer each other than this, degrees, are one pose to
@@ -306,10 +316,7 @@ impl ShapeEstimator {
     /// spread of what it blended about it.
     fn blend(&self, scored: &[Scored], span: f64) -> Blend {
         let best = &scored[0];
-        let alone = Blend {
-            pose: best.pose,
-            spread: [[0.0; 6]; 6],
-        };
+        let alone = Blend::alone(best.pose);
         let scale = self.settings.blend_score_scale;
         if scale <= 0.0 {
             return alone;
@@ -564,10 +571,7 @@ impl ShapeEstimator {
         // Colours that place the object are the estimate: the shape only
         // fitted them.
         let blend = if anchored {
-            Blend {
-                pose: best,
-                spread: [[0.0; 6]; 6],
-            }
+            Blend::alone(best)
         } else {
             self.blend(&scored, span)
         };
@@ -775,10 +779,7 @@ mod tests {
                 assert!((1..r).all(|i| !alone.apart(&a.scored[i].pose, &best, 1.5)));
             }
             let blended = if a.anchored {
-                Blend {
-                    pose: best,
-                    spread: [[0.0; 6]; 6],
-                }
+                Blend::alone(best)
             } else {
                 alone.blend(&a.scored, 1.5)
             };
