@@ -485,12 +485,7 @@ impl Confidence {
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
-            // No views, no range known: any elevation.
-            min_theta_deg: db
-                .theta_range_deg()
-                .map_or(f32::NEG_INFINITY, |(lowest, _)| {
-                    lowest - acch_confidence::BELOW_LOWEST_VIEW_DEG
-                }),
+            min_theta_deg: acch_confidence::min_theta_deg(db),
             unrated: false,
         }
     }

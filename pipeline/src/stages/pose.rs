@@ -241,6 +241,7 @@ impl Pose {
                 ShapeSettings {
                     max_roll_deg: (settings.roll_search_deg as f64 + OFF_AXIS_ROLL_DEG).min(180.0),
                     overrule_margin: acch_confidence::MIN_SHAPE_MARGIN,
+                    lowest_elevation_deg: acch_confidence::min_theta_deg(db) as f64,
                     ..ShapeSettings::default()
                 },
             )),

@@ -118,6 +118,16 @@ pub const MIN_IN_FRAME: f32 = 0.98;
 /// lowest view.
 pub const BELOW_LOWEST_VIEW_DEG: f32 = 5.0;
 
+/// The lowest elevation a pose of `db`'s object is accepted at: its lowest
+/// view less [`BELOW_LOWEST_VIEW_DEG`] (-inf for a database without
+/// views: no range is known).
+pub fn min_theta_deg(db: &acch_core::ViewDatabase) -> f32 {
+    db.theta_range_deg()
+        .map_or(f32::NEG_INFINITY, |(lowest, _)| {
+            lowest - BELOW_LOWEST_VIEW_DEG
+        })
+}
+
 /// ...and only when its score (what it explains of the image) beats the
 /// best candidate that would be a failure if it were right, the object's
 /// symmetries allowed for, by this much: another pose that explains the
