@@ -120,7 +120,9 @@ pub const BELOW_LOWEST_VIEW_DEG: f32 = 5.0;
 
 /// The lowest elevation a pose of `db`'s object is accepted at: its lowest
 /// view less [`BELOW_LOWEST_VIEW_DEG`] (-inf for a database without
-/// views: no range is known).
+/// views: no range is known). The shape takes it as the lowest elevation
+/// the camera sees (`acch_shape::ShapeSettings::lowest_elevation_deg`):
+/// a pose below it is no answer and no rival.
 pub fn min_theta_deg(db: &acch_core::ViewDatabase) -> f32 {
     db.theta_range_deg()
         .map_or(f32::NEG_INFINITY, |(lowest, _)| {
@@ -130,7 +132,8 @@ pub fn min_theta_deg(db: &acch_core::ViewDatabase) -> f32 {
 
 /// ...and only when its score (what it explains of the image) beats the
 /// best candidate that would be a failure if it were right, the object's
-/// symmetries allowed for, by this much: another pose that explains the
+/// symmetries allowed for, and that the camera sees (not below
+/// [`min_theta_deg`]), by this much: another pose that explains the
 /// image about as well makes it a guess. A candidate within
 /// `acch_shape::ShapeSettings::rival_span` failure tolerances of it is no
 /// such rival: as good and that near, it says the truth lies between the

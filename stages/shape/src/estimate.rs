@@ -67,8 +67,16 @@ pub struct ShapeSettings {
     /// pose the shape chose).
     pub overrule_margin: f32,
     /// Elevation below which a pose is not one the camera sees, degrees
-    /// (-inf: any): such a candidate is the estimate only when the camera
-    /// sees none, and never the best's rival. The database covers the
+    /// (-inf: any): such a candidate is the shape's best only when the
+    /// camera sees none (an anchored view stays the colours'), is never
+    /// the best's rival, and is not blended into a best the camera sees.
+    /// It still overrules an anchored view it explains the image better
+    /// than (then the estimate is rejected by the elevation bar; held
+    /// back, the anchor stayed a wrong estimate where a camera below the
+    /// database saw the object), and the polish stays free: where it
+    /// tilts the best below the floor, the bar rejects it (on LM-O's ape,
+    /// holding the polish above the floor accepted a half turn at the
+    /// floor that the bar had rejected). The database covers the
     /// elevations the camera sees and acceptance bars a pose below them
     /// (`acch_confidence::min_theta_deg`), so a pose there is no answer
     /// and no ambiguity. On LM-O's development objects with the annotated
@@ -117,7 +125,7 @@ pub struct Scored {
 /// The shape's estimate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShapeEstimate {
-    /// Every candidate, best first.
+    /// Every candidate, the best first, then the others by score.
     pub scored: Vec<Scored>,
     /// The best candidate that would fail as an estimate of the best (a
     /// different view, symmetries allowed for) by more than
@@ -361,8 +369,11 @@ impl ShapeEstimator {
         }
         let q_best = glam::DQuat::from_mat3(&best.pose.matrix3);
         let mut members: Vec<(f64, glam::DQuat, glam::DVec3)> = Vec::new();
+        // A pose the camera does not see blends only into a best it does
+        // not see either: ranked below the best, it may score above it.
+        let seen = self.seen(&best.pose);
         for c in scored {
-            if self.apart(&c.pose, &best.pose, span) {
+            if self.apart(&c.pose, &best.pose, span) || (seen && !self.seen(&c.pose)) {
                 continue;
             }
             let nearest = self
@@ -729,6 +740,8 @@ mod tests {
         let ranked = |estimator: &ShapeEstimator| {
             let mut c = candidates.to_vec();
             estimator.rank(&mut c);
+            // As `estimate` leaves them: the best, then the rest by score.
+            c[1..].sort_by(|a, b| b.score.total_cmp(&a.score));
             let rival = estimator.rival(&c, 1.5).map(|i| view_of(&c[i].pose));
             (view_of(&c[0].pose), rival)
         };
@@ -746,12 +759,21 @@ mod tests {
         assert!((rival.theta_deg - 40.0).abs() < 1e-6, "{rival:?}");
         assert!((rival.phi_deg - 280.0).abs() < 1e-6, "{rival:?}");
         // Without a floor the score alone ranks: the pose from below is
-        // the best, and the other from below its rival.
+        // the best, and the next by score (from above) its rival.
         let any = ShapeEstimator::new(model, Symmetry::none(), ShapeSettings::default());
         let (best, rival) = ranked(&any);
         assert!((best.theta_deg + 20.0).abs() < 1e-6, "{best:?}");
         let rival = rival.expect("a rival");
         assert!((rival.theta_deg - 40.0).abs() < 1e-6, "{rival:?}");
+        // A neighbour below the floor that scores above the best is not
+        // blended into it; without a floor it pulls the blend down.
+        let near = [
+            candidate(5.0, 100.0, 0.0, 5.0),
+            candidate(-3.0, 100.0, 0.0, 5.3),
+        ];
+        let blended = |estimator: &ShapeEstimator| view_of(&estimator.blend(&near, 1.5).pose);
+        assert!((blended(&floored).theta_deg - 5.0).abs() < 1e-6);
+        assert!(blended(&any).theta_deg < 0.0, "{:?}", blended(&any));
     }
 
     #[test]
