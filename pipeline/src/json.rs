@@ -208,7 +208,8 @@ pub struct ResultJson<'a> {
     /// The least overlap accepted, when verified.
     pub min_overlap: Option<f32>,
     /// The fit's score over its rival's (the best candidate beyond 1.5
-    /// failure tolerances), when verified (null: no such candidate).
+    /// failure tolerances and not below `min_theta_deg`), when verified
+    /// (null: no such candidate).
     pub shape_margin: Option<f32>,
     /// The least margin accepted, when verified.
     pub min_shape_margin: Option<f32>,

@@ -70,7 +70,8 @@ pub struct ShapeFit {
     pub score: f32,
     /// The best score of a candidate that would fail as an estimate of this
     /// one by more than a neighbour's span
-    /// ([`acch_shape::ShapeSettings::rival_span`]); -inf when none did.
+    /// ([`acch_shape::ShapeSettings::rival_span`]), of those not below
+    /// the lowest elevation the camera sees; -inf when none did.
     pub rival_score: f32,
     /// Candidates fitted.
     pub candidates: u32,

@@ -170,7 +170,7 @@ pub const RESULT_SCHEMA: &str = r#"{
     "min_region_edge": {"type": "number", "description": "null unless verified"},
     "overlap": {"type": "number", "description": "the fitted silhouette against the region, intersection over union; null unless verified"},
     "min_overlap": {"type": "number", "description": "null unless verified"},
-    "shape_margin": {"type": "number", "description": "the fit's score over its rival's (the best candidate beyond 1.5 failure tolerances); null unless verified, or without such a candidate"},
+    "shape_margin": {"type": "number", "description": "the fit's score over its rival's (the best candidate beyond 1.5 failure tolerances and not below min_theta_deg); null unless verified, or without such a candidate"},
     "min_shape_margin": {"type": "number", "description": "null unless verified"},
     "in_frame": {"type": "number", "description": "share of the fitted contour in the frame; null unless verified"},
     "min_in_frame": {"type": "number", "description": "null unless verified with a region recognition found"},

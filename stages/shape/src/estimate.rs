@@ -4,9 +4,10 @@
 //! fitted to the image by colour along its contour, and the fitted poses
 //! are judged by how sharply the object's colours part from its
 //! surroundings along the contour and how well the silhouette covers the
-//! region. The best is the estimate; the best of those that would be a
-//! failure if it were right, by more than a neighbour's span, is its
-//! rival.
+//! region. The best is the estimate (a pose below the lowest elevation
+//! the camera sees ranks after every pose above it); the best of those
+//! above it that would be a failure if it were right, by more than a
+//! neighbour's span, is its rival.
 
 use crate::edges::Edges;
 use crate::geometry::{View, view_of};
@@ -44,7 +45,8 @@ pub struct ShapeSettings {
     /// were right (docs/real-photographs.md, "Fifth round").
     pub rival_span: f64,
     /// The estimate blends the best with its neighbours (the candidates
-    /// within the rival span), each weighed by `exp((score - best's) /
+    /// within the rival span; for a best the camera sees, only those it
+    /// sees too), each weighed by `exp((score - best's) /
     /// this)`: the score hardly changes within 12-25° of a right pose, so
     /// the truth tends to lie among neighbours that score alike (0: the
     /// best alone).
@@ -67,16 +69,18 @@ pub struct ShapeSettings {
     /// pose the shape chose).
     pub overrule_margin: f32,
     /// Elevation below which a pose is not one the camera sees, degrees
-    /// (-inf: any): such a candidate is the shape's best only when the
-    /// camera sees none (an anchored view stays the colours'), is never
-    /// the best's rival, and is not blended into a best the camera sees.
-    /// It still overrules an anchored view it explains the image better
-    /// than (then the estimate is rejected by the elevation bar; held
-    /// back, the anchor stayed a wrong estimate where a camera below the
-    /// database saw the object), and the polish stays free: where it
-    /// tilts the best below the floor, the bar rejects it (on LM-O's ape,
-    /// holding the polish above the floor accepted a half turn at the
-    /// floor that the bar had rejected). The database covers the
+    /// (-inf: any): the candidates are ranked with such poses after every
+    /// other, so one is the search's best only when the camera sees none
+    /// (an anchored view stays the colours'); it is never the best's
+    /// rival and is not blended into a best the camera sees. The view
+    /// that may overrule an anchor is the first different one in this
+    /// ranking, so such a pose overrules only when no pose above the floor
+    /// differs from the anchor (barred from that too, the anchor stayed a
+    /// wrong estimate where a camera below the database saw the object).
+    /// The polish stays free: where it tilts the best below the floor,
+    /// acceptance's elevation bar rejects it (on LM-O's ape, holding the
+    /// polish above the floor accepted a half turn at the floor that the
+    /// bar had rejected). The database covers the
     /// elevations the camera sees and acceptance bars a pose below them
     /// (`acch_confidence::min_theta_deg`), so a pose there is no answer
     /// and no ambiguity. On LM-O's development objects with the annotated
