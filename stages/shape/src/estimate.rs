@@ -80,8 +80,8 @@ pub struct ShapeSettings {
     /// The polish stays free: where it tilts the best below the floor,
     /// acceptance's elevation bar rejects it (on LM-O's ape, holding the
     /// polish above the floor accepted a half turn at the floor that the
-    /// bar had rejected). The database covers the
-    /// elevations the camera sees and acceptance bars a pose below them
+    /// bar had rejected). The database covers the elevations the camera
+    /// sees and acceptance bars a pose below them
     /// (`acch_confidence::min_theta_deg`), so a pose there is no answer
     /// and no ambiguity. On LM-O's development objects with the annotated
     /// mask, 11 more right estimates were accepted once such rivals no
@@ -328,8 +328,8 @@ impl ShapeEstimator {
     }
 
     /// Sorts `scored` best first: the poses the camera sees by score, then
-    /// the others by score (a pose it does not see is the estimate only
-    /// when the camera sees none).
+    /// the others by score (a pose it does not see leads only when the
+    /// camera sees none).
     fn rank(&self, scored: &mut [Scored]) {
         scored.sort_by(|a, b| {
             self.seen(&b.pose)
