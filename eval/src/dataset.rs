@@ -152,12 +152,11 @@ pub struct ImageRow {
 
 /// The score acch accepts an estimate by: for one its shape chose
 /// (verified 1), the smallest of its contour's share on the region's edge,
-/// its overlap, its margin over its rival and (for a region
-/// recognition found) its contour's share in the frame, each over its bar
-/// (0 for an elevation more than 5° below the database's lowest view);
-/// else the
-/// network's confidence over its threshold. Accepted means this is at
-/// least 1, and the object was found at or above recognition's threshold
+/// its overlap, its margin over its rival and (for a region recognition
+/// found) its contour's share in the frame, each over its bar (0 for an
+/// elevation more than 5° below the database's lowest view, or a fit
+/// farther than the distance bar); else the network's confidence over
+/// its threshold. Accepted means this is at least 1, and the object was found at or above recognition's threshold
 /// (and, for the colour rules, no rival, crest, misplacement or faint
 /// detection).
 pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
@@ -171,8 +170,8 @@ pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
                 f32::INFINITY
             })
             // Below the bar on elevation (the database's lowest view less
-            // 5°): no score can accept it.
-            .min(if v.shape_in_range() {
+            // 5°) or beyond the one on distance: no score can accept it.
+            .min(if v.shape_in_range() && v.shape_near() {
                 f32::INFINITY
             } else {
                 0.0

@@ -207,7 +207,7 @@ pub struct ResultJson<'a> {
     pub overlap: Option<f32>,
     /// The least overlap accepted, when verified.
     pub min_overlap: Option<f32>,
-    /// The fit's score over its rival's (the best candidate beyond 1.5
+    /// The fit's score over its rival's (the best candidate beyond 1.75
     /// failure tolerances and not below `min_theta_deg`), when verified
     /// (null: no such candidate).
     pub shape_margin: Option<f32>,
@@ -221,6 +221,10 @@ pub struct ResultJson<'a> {
     /// The lowest elevation accepted for a pose the shape chose, degrees
     /// (the database's lowest view less 5°), when it chose it.
     pub min_theta_deg: Option<f32>,
+    /// The farthest a pose the shape chose may place the object, metres
+    /// (1.6 times the training distance, or the arm's), when it chose it
+    /// and the distance is known.
+    pub max_distance_m: Option<f32>,
     /// The object's pose the shape fitted, when verified: camera from
     /// object, translation (metres) and rotation (x, y, z, w).
     pub fitted_pose: Option<([f32; 3], [f32; 4])>,
@@ -362,6 +366,9 @@ impl<'a> ResultJson<'a> {
             min_theta_deg: verdict
                 .filter(|v| v.verified == 1 && v.min_theta_deg.is_finite())
                 .map(|v| v.min_theta_deg),
+            max_distance_m: verdict
+                .filter(|v| v.verified == 1 && v.max_distance_m.is_finite())
+                .map(|v| v.max_distance_m),
             fitted_pose: m
                 .pose()
                 .done()

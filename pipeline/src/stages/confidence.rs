@@ -3,14 +3,15 @@
 //!
 //! An estimate the object's shape chose (the pose stage fitted the
 //! mesh's contour to the image) is accepted only when its contour lies on
-//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), its
-//! silhouette covers the region ([`acch_confidence::MIN_OVERLAP`]), it
+//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), its silhouette covers the region ([`acch_confidence::MIN_OVERLAP`]), it
 //! explains the image clearly better than its rival
 //! ([`acch_confidence::MIN_SHAPE_MARGIN`]), its contour lies in the frame
 //! for a region recognition found ([`acch_confidence::MIN_IN_FRAME`]),
 //! its elevation is at most [`acch_confidence::BELOW_LOWEST_VIEW_DEG`]
-//! below the database's lowest view, and the object was found at or above
-//! recognition's threshold. Geometry decides on real
+//! below the database's lowest view, it lies at most
+//! [`acch_confidence::MAX_DISTANCE_RATIO`] times as far as the database
+//! was trained for, and the object was found at or above recognition's
+//! threshold. Geometry decides on real
 //! photographs, where the colour rules below accepted 90 % wrong.
 //!
 //! An unverified estimate (a database without a shape, or a frame whose
@@ -78,6 +79,8 @@ pub struct ShapeEvidence {
     /// The fit's score over the best score of a candidate that would fail
     /// as an estimate of it (infinity: none did).
     pub margin: f32,
+    /// The fitted object's distance from the camera, metres.
+    pub distance_m: f32,
     /// Share of the fitted contour in the frame.
     pub in_frame: f32,
     /// The estimate's elevation, degrees.
@@ -128,6 +131,12 @@ pub struct Verdict {
     pub region_edge: f32,
     /// The least share accepted ([`acch_confidence::MIN_REGION_EDGE`]).
     pub min_region_edge: f32,
+    /// The fitted object's distance, metres (NaN: unverified).
+    pub distance_m: f32,
+    /// The farthest accepted for a pose the shape chose
+    /// ([`acch_confidence::MAX_DISTANCE_RATIO`] times the distance the
+    /// database was trained for, or the arm reports; infinity: unknown).
+    pub max_distance_m: f32,
     /// The fitted silhouette against the region, intersection over union
     /// (NaN: unverified).
     pub overlap: f32,
@@ -151,8 +160,9 @@ pub struct Verdict {
     /// Chosen by the shape (verified 1): the contour on the region's edge
     /// and the silhouette covering the region, a clear margin over its
     /// rival ([`acch_shape::ShapeEstimate::rival`]), the contour in the frame (a region recognition
-    /// found), the view no lower than the database covers, and found at or
-    /// above recognition's threshold. Otherwise
+    /// found), the view no lower than the database covers, the object no
+    /// farther than its bar, and found at or above recognition's
+    /// threshold. Otherwise
     /// the colour rules: `confidence >= threshold`, `rival <= max_rival` (NaN in either is
     /// rejected), not [`broad`](Self::broad), not
     /// [`misplaced`](Self::misplaced) and not [`faint`](Self::faint); and
@@ -186,6 +196,8 @@ impl Verdict {
             },
             region_edge: evidence.shape.map_or(f32::NAN, |s| s.region_edge),
             min_region_edge: rules.min_region_edge,
+            distance_m: evidence.shape.map_or(f32::NAN, |s| s.distance_m),
+            max_distance_m: rules.max_distance_m,
             overlap: evidence.shape.map_or(f32::NAN, |s| s.overlap),
             min_overlap: rules.min_overlap,
             shape_margin: evidence.shape.map_or(f32::NAN, |s| s.margin),
@@ -208,6 +220,7 @@ impl Verdict {
                     && v.shape_clear()
                     && v.shape_in_frame()
                     && v.shape_in_range()
+                    && v.shape_near()
                     && !v.under_threshold()
             }
             2 => colour_rules && v.shape_agrees(),
@@ -219,6 +232,12 @@ impl Verdict {
     /// Whether the fitted contour lies on the region's edge (NaN: no).
     pub fn shape_agrees(&self) -> bool {
         self.region_edge >= self.min_region_edge
+    }
+
+    /// Whether the fit places the object no farther than its bar (NaN:
+    /// no): a fragment fitted as a whole lands far behind it.
+    pub fn shape_near(&self) -> bool {
+        self.distance_m <= self.max_distance_m
     }
 
     /// Whether the fitted silhouette and the region cover each other
@@ -313,6 +332,8 @@ pub struct Rules {
     pub max_map_rival: f32,
     /// The least share of a verified contour on the region's edge.
     pub min_region_edge: f32,
+    /// The farthest a pose the shape chose may place the object, metres.
+    pub max_distance_m: f32,
     /// The least overlap of a verified silhouette with the region.
     pub min_overlap: f32,
     /// The least margin of a verified fit over its rival.
@@ -326,7 +347,8 @@ pub struct Rules {
 
 impl Rules {
     /// The default bars with the network's `threshold`, for a database
-    /// whose lowest view is unknown (any elevation accepted).
+    /// whose lowest view and distance are unknown (any elevation and
+    /// distance accepted).
     pub fn with_threshold(threshold: f32) -> Self {
         Rules {
             threshold,
@@ -334,6 +356,7 @@ impl Rules {
             phi_plateau_limit_deg: acch_confidence::PHI_PLATEAU_LIMIT_DEG,
             max_map_rival: acch_confidence::MAX_MAP_RIVAL,
             min_region_edge: acch_confidence::MIN_REGION_EDGE,
+            max_distance_m: f32::INFINITY,
             min_overlap: acch_confidence::MIN_OVERLAP,
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
@@ -432,6 +455,9 @@ pub struct Confidence {
     /// The database's lowest view less
     /// [`acch_confidence::BELOW_LOWEST_VIEW_DEG`], degrees.
     min_theta_deg: f32,
+    /// [`acch_confidence::MAX_DISTANCE_RATIO`] times the training distance
+    /// (or the arm's), metres.
+    max_distance_m: f32,
     /// The explicit unrated mode: nothing is accepted, even verified.
     unrated: bool,
 }
@@ -458,6 +484,9 @@ impl Confidence {
             Err(e) => return Err(e.into()),
         };
         let mut stage = Self::with_model(db, model);
+        if let Some(d) = settings.distance_m {
+            stage.max_distance_m = acch_confidence::MAX_DISTANCE_RATIO * d as f32;
+        }
         // Nothing can judge: neither a network nor a shape.
         stage.unrated = stage.model.is_none() && !has_shape;
         Ok(stage)
@@ -486,6 +515,7 @@ impl Confidence {
             min_shape_margin: acch_confidence::MIN_SHAPE_MARGIN,
             min_in_frame: acch_confidence::MIN_IN_FRAME,
             min_theta_deg: acch_confidence::min_theta_deg(db),
+            max_distance_m: acch_confidence::MAX_DISTANCE_RATIO * db.train_distance_m,
             unrated: false,
         }
     }
@@ -559,6 +589,7 @@ impl Stage for Confidence {
                 region_edge: f.region_edge,
                 overlap: f.overlap,
                 margin: f.score - f.rival_score,
+                distance_m: glam::Vec3::from(f.translation_m).length(),
                 in_frame: f.in_frame,
                 theta_deg: p.theta_deg,
                 anchored: f.anchored == 1,
@@ -616,6 +647,7 @@ impl Stage for Confidence {
             phi_plateau_limit_deg: self.phi_plateau_limit_deg,
             max_map_rival: self.max_map_rival,
             min_region_edge: self.min_region_edge,
+            max_distance_m: self.max_distance_m,
             min_overlap: self.min_overlap,
             min_shape_margin: self.min_shape_margin,
             min_in_frame: self.min_in_frame,
@@ -654,6 +686,33 @@ mod tests {
         Rules::with_threshold(0.8)
     }
 
+    /// A fit the shape chose, 1 m away at 30° of elevation, its contour
+    /// in the frame.
+    fn fit(region_edge: f32, overlap: f32, margin: f32) -> ShapeEvidence {
+        ShapeEvidence {
+            region_edge,
+            overlap,
+            margin,
+            distance_m: 1.0,
+            in_frame: 1.0,
+            theta_deg: 30.0,
+            anchored: false,
+        }
+    }
+
+    /// The verdict on `shape`, chosen by the shape, with no network.
+    fn judged_by_shape(shape: ShapeEvidence, rules: Rules) -> Verdict {
+        Verdict::new(
+            Evidence {
+                confidence: f32::NAN,
+                rival: f32::NAN,
+                shape: Some(shape),
+                ..clear(f32::NAN, f32::NAN)
+            },
+            rules,
+        )
+    }
+
     #[test]
     fn a_pose_the_shape_chose_is_accepted_by_the_shapes_bars_alone() {
         // No network (NaN confidence) and no colour evidence: the shape's
@@ -665,12 +724,8 @@ mod tests {
                     rival: f32::NAN,
                     detection_margin,
                     shape: Some(ShapeEvidence {
-                        region_edge,
-                        overlap,
-                        margin,
                         in_frame,
-                        theta_deg: 30.0,
-                        anchored: false,
+                        ..fit(region_edge, overlap, margin)
                     }),
                     ..clear(f32::NAN, f32::NAN)
                 },
@@ -725,19 +780,10 @@ mod tests {
         // A view below what the database covers is no pose it vouches
         // for: its lowest view (20°) less 5° is the bar.
         let at = |theta_deg| {
-            Verdict::new(
-                Evidence {
-                    confidence: f32::NAN,
-                    rival: f32::NAN,
-                    shape: Some(ShapeEvidence {
-                        region_edge: 0.95,
-                        overlap: 0.85,
-                        margin: 0.5,
-                        in_frame: 1.0,
-                        theta_deg,
-                        anchored: false,
-                    }),
-                    ..clear(f32::NAN, f32::NAN)
+            judged_by_shape(
+                ShapeEvidence {
+                    theta_deg,
+                    ..fit(0.95, 0.85, 0.5)
                 },
                 Rules {
                     min_theta_deg: 20.0 - acch_confidence::BELOW_LOWEST_VIEW_DEG,
@@ -756,12 +802,8 @@ mod tests {
             Verdict::new(
                 Evidence {
                     shape: Some(ShapeEvidence {
-                        region_edge: 0.95,
-                        overlap: 0.85,
-                        margin: f32::NAN,
-                        in_frame: 1.0,
-                        theta_deg: 30.0,
                         anchored: true,
+                        ..fit(0.95, 0.85, f32::NAN)
                     }),
                     ..clear(confidence, 0.5)
                 },
@@ -773,12 +815,8 @@ mod tests {
         let partial = Verdict::new(
             Evidence {
                 shape: Some(ShapeEvidence {
-                    region_edge: 0.95,
-                    overlap: 0.6,
-                    margin: f32::NAN,
-                    in_frame: 1.0,
-                    theta_deg: 30.0,
                     anchored: true,
+                    ..fit(0.95, 0.6, f32::NAN)
                 }),
                 ..clear(0.9, 0.5)
             },
@@ -786,6 +824,36 @@ mod tests {
         );
         assert!(partial.accepted, "{partial:?}");
         assert!(!anchored(0.5).accepted && !anchored(f32::NAN).accepted);
+    }
+
+    #[test]
+    fn a_pose_the_shape_chose_beyond_the_distance_bar_is_rejected() {
+        // Trained at 0.5 m.
+        let bar = acch_confidence::MAX_DISTANCE_RATIO * 0.5;
+        let at = |distance_m| {
+            judged_by_shape(
+                ShapeEvidence {
+                    distance_m,
+                    ..fit(0.95, 0.85, 0.5)
+                },
+                Rules {
+                    max_distance_m: bar,
+                    ..rules()
+                },
+            )
+        };
+        assert!(at(bar).accepted && at(0.2).accepted, "{:?}", at(bar));
+        for distance_m in [bar + 0.01, 3.0, f32::NAN] {
+            let v = at(distance_m);
+            assert!(!v.accepted && !v.shape_near(), "{v:?}");
+        }
+        // With no training distance known, any distance.
+        let far = ShapeEvidence {
+            distance_m: 30.0,
+            ..fit(0.95, 0.85, 0.5)
+        };
+        let v = judged_by_shape(far, rules());
+        assert!(v.accepted, "{v:?}");
     }
 
     #[test]

@@ -170,11 +170,12 @@ pub const RESULT_SCHEMA: &str = r#"{
     "min_region_edge": {"type": "number", "description": "null unless verified"},
     "overlap": {"type": "number", "description": "the fitted silhouette against the region, intersection over union; null unless verified"},
     "min_overlap": {"type": "number", "description": "null unless verified"},
-    "shape_margin": {"type": "number", "description": "the fit's score over its rival's (the best candidate beyond 1.5 failure tolerances and not below min_theta_deg); null unless verified, or without such a candidate"},
+    "shape_margin": {"type": "number", "description": "the fit's score over its rival's (the best candidate beyond 1.75 failure tolerances and not below min_theta_deg); null unless verified, or without such a candidate"},
     "min_shape_margin": {"type": "number", "description": "null unless verified"},
     "in_frame": {"type": "number", "description": "share of the fitted contour in the frame; null unless verified"},
     "min_in_frame": {"type": "number", "description": "null unless verified with a region recognition found"},
     "min_theta_deg": {"type": "number", "description": "the lowest elevation accepted for a pose the shape chose (the database's lowest view less 5 degrees), against estimate_deg[0]; null unless the shape chose it"},
+    "max_distance_m": {"type": "number", "description": "the farthest a pose the shape chose may place the object (1.6 times the training distance, or the arm's), against the length of fitted_pose's translation; null unless the shape chose it"},
     "stamp": {"type": "object", "properties": {
       "clock": {"type": "string"}, "captured_ns": {"type": "integer"}, "published_ns": {"type": "integer"},
       "wall_ns": {"type": "integer"}}},

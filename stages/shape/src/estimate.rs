@@ -42,7 +42,9 @@ pub struct ShapeSettings {
     /// well says the truth lies between the two, where the best is still
     /// right: on LM-O's development objects with the annotated mask, of
     /// the 49 estimates only such a neighbour held below the margin, 47
-    /// were right (docs/real-photographs.md, "Fifth round").
+    /// were right (docs/real-photographs.md, "Fifth round"); widened from
+    /// 1.5 to 1.75, 21 more right estimates were accepted there and 3 more
+    /// wrong ones, two of them within 8° of the truth ("Eighth round").
     pub rival_span: f64,
     /// The estimate blends the best with its neighbours (the candidates
     /// within the rival span; for a best the camera sees, only those it
@@ -99,7 +101,7 @@ impl Default for ShapeSettings {
             lines: LineParams::default(),
             distinct_theta_deg: 10.0,
             distinct_phi_deg: 20.0,
-            rival_span: 1.5,
+            rival_span: 1.75,
             blend_score_scale: 0.1,
             polish_deg: 5.0,
             polish_rounds: 2,
@@ -847,6 +849,7 @@ mod tests {
             .unwrap();
         shared.share_fits_with(Arc::new(pool));
         let mut spread_seen = false;
+        let span = ShapeSettings::default().rival_span;
         for (theta, phi, roll) in [(50.0, 60.0, 0.0), (20.0, 210.0, 30.0), (80.0, 300.0, -60.0)] {
             let view = View {
                 theta_deg: theta,
@@ -878,13 +881,13 @@ mod tests {
             // best with what lies within it.
             let best = a.best().pose;
             if let Some(r) = a.rival {
-                assert!(alone.apart(&a.scored[r].pose, &best, 1.5));
-                assert!((1..r).all(|i| !alone.apart(&a.scored[i].pose, &best, 1.5)));
+                assert!(alone.apart(&a.scored[r].pose, &best, span));
+                assert!((1..r).all(|i| !alone.apart(&a.scored[i].pose, &best, span)));
             }
             let blended = if a.anchored {
                 Blend::alone(best)
             } else {
-                alone.blend(&a.scored, 1.5)
+                alone.blend(&a.scored, span)
             };
             assert_eq!(a.pose, blended.pose);
             // Its covariance is the best's fit's and the blend's spread:
@@ -899,7 +902,7 @@ mod tests {
                 },
             );
             let w = wide.estimate(&image, &k, &region, &proposal).unwrap();
-            let spread = wide.blend(&w.scored, 1.5).spread;
+            let spread = wide.blend(&w.scored, span).spread;
             let fit = fit_covariance(
                 &wide.model,
                 &image,
