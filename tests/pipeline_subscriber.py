@@ -116,8 +116,14 @@ def main():
         min_theta, est = r.get("min_theta_deg"), r.get("estimate_deg")
         in_range = min_theta is None or (
             est is not None and est[0] is not None and est[0] >= min_theta)
+        # No farther than the distance bar (sent when the shape chose the
+        # pose), judged on the fitted pose's translation.
+        max_distance, fitted = r.get("max_distance_m"), r.get("fitted_pose")
+        near = max_distance is None or (
+            fitted is not None and math.dist(fitted[0], (0.0, 0.0, 0.0)) <= max_distance)
         if verified == 1:
-            should = agrees and covers and clear and framed and in_range and not under
+            should = (agrees and covers and clear and framed and in_range and near
+                      and not under)
         elif verified == 2:
             should = colour and agrees
         else:

@@ -156,9 +156,9 @@ pub struct ImageRow {
 /// found) its contour's share in the frame, each over its bar (0 for an
 /// elevation more than 5° below the database's lowest view, or a fit
 /// farther than the distance bar); else the network's confidence over
-/// its threshold. Accepted means this is at least 1, and the object was found at or above recognition's threshold
-/// (and, for the colour rules, no rival, crest, misplacement or faint
-/// detection).
+/// its threshold. Accepted means this is at least 1, and the object was
+/// found at or above recognition's threshold (and, for the colour rules,
+/// no rival, crest, misplacement or faint detection).
 pub fn acceptance_score(v: &acch_pipeline::stages::Verdict) -> f32 {
     if v.verified == 1 {
         (v.region_edge / v.min_region_edge)

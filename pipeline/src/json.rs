@@ -604,6 +604,7 @@ mod tests {
         let declared = schema["properties"].as_object().unwrap();
         let fields = result.as_object().unwrap();
         assert!(fields.contains_key("min_theta_deg"), "{fields:?}");
+        assert!(fields.contains_key("max_distance_m"), "{fields:?}");
         // The trail (a stage name and two times per stage) and the fitted
         // pose (a translation and a quaternion) have no single item type,
         // which Foxglove needs: the schema describes them and does not

@@ -3,15 +3,16 @@
 //!
 //! An estimate the object's shape chose (the pose stage fitted the
 //! mesh's contour to the image) is accepted only when its contour lies on
-//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), its silhouette covers the region ([`acch_confidence::MIN_OVERLAP`]), it
+//! the region's edge ([`acch_confidence::MIN_REGION_EDGE`]), its
+//! silhouette covers the region ([`acch_confidence::MIN_OVERLAP`]), it
 //! explains the image clearly better than its rival
 //! ([`acch_confidence::MIN_SHAPE_MARGIN`]), its contour lies in the frame
 //! for a region recognition found ([`acch_confidence::MIN_IN_FRAME`]),
 //! its elevation is at most [`acch_confidence::BELOW_LOWEST_VIEW_DEG`]
 //! below the database's lowest view, it lies at most
 //! [`acch_confidence::MAX_DISTANCE_RATIO`] times as far as the database
-//! was trained for, and the object was found at or above recognition's
-//! threshold. Geometry decides on real
+//! was trained for (or as the arm reports, when it does), and the object
+//! was found at or above recognition's threshold. Geometry decides on real
 //! photographs, where the colour rules below accepted 90 % wrong.
 //!
 //! An unverified estimate (a database without a shape, or a frame whose
@@ -79,7 +80,8 @@ pub struct ShapeEvidence {
     /// The fit's score over the best score of a candidate that would fail
     /// as an estimate of it (infinity: none did).
     pub margin: f32,
-    /// The fitted object's distance from the camera, metres.
+    /// The estimate's distance from the camera to the object's centre,
+    /// metres (the seed's: after the blend).
     pub distance_m: f32,
     /// Share of the fitted contour in the frame.
     pub in_frame: f32,

@@ -135,11 +135,11 @@ pub fn min_theta_deg(db: &acch_core::ViewDatabase) -> f32 {
 /// it does): recognition's window is sized for that distance, and a
 /// fragment fitted as a whole lands far behind the object. On LM-O's
 /// development objects with the annotated mask, it rejected a glue
-/// fitted 1.9 times as far, 33° off (and, in a variant not kept, an ape
-/// 18 % visible fitted 2.2 times as far, 111° off); right accepted
-/// estimates lay at most 1.33 times as far, and the robust protocol takes
-/// rendered objects to 1.5 times (docs/real-photographs.md, "Eighth
-/// round").
+/// fitted 1.9 times the training distance away, 33° off (and, in a
+/// variant not kept, an ape 18 % visible fitted 2.2 times, 111° off);
+/// right accepted estimates lay at most 1.33 times as far, and the robust
+/// protocol takes rendered objects to 1.5 times
+/// (docs/real-photographs.md, "Eighth round").
 pub const MAX_DISTANCE_RATIO: f32 = 1.6;
 
 /// ...and only when its score (what it explains of the image) beats the

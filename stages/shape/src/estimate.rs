@@ -43,8 +43,10 @@ pub struct ShapeSettings {
     /// right: on LM-O's development objects with the annotated mask, of
     /// the 49 estimates only such a neighbour held below the margin, 47
     /// were right (docs/real-photographs.md, "Fifth round"); widened from
-    /// 1.5 to 1.75, 21 more right estimates were accepted there and 3 more
-    /// wrong ones, two of them within 8° of the truth ("Eighth round").
+    /// 1.5 to 1.75, 21 more right estimates were accepted there and 2 more
+    /// wrong ones, both within 8° of the truth, once a third, a glue 33°
+    /// off, fell to the bar on distance
+    /// (`acch_confidence::MAX_DISTANCE_RATIO`; "Eighth round").
     pub rival_span: f64,
     /// The estimate blends the best with its neighbours (the candidates
     /// within the rival span; for a best the camera sees, only those it
