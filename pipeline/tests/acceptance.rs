@@ -12,7 +12,9 @@ use acch_capture::{
 };
 use acch_core::ViewDatabase;
 use acch_pipeline::stage::{StageCounters, step};
-use acch_pipeline::stages::{BuildError, Confidence, PoseEstimate, Posed, Rating, Seeding, Window};
+use acch_pipeline::stages::{
+    BuildError, Confidence, PoseEstimate, Posed, Rating, Seeding, ShapeFit, Window,
+};
 use acch_pipeline::wire::{Fault, Intrinsics, Outcome, PixelRect};
 use acch_pipeline::{Chain, FrameHeader, StageId, StageSettings};
 use std::sync::Arc;
@@ -154,6 +156,70 @@ fn the_stage_rejects_an_estimate_on_a_broad_crest_in_azimuth() {
     let peak = rate(0.6);
     assert_eq!(peak.phi_plateau_deg, 0.0);
     assert!(!peak.broad(), "{peak:?}");
+}
+
+#[test]
+fn a_pose_the_shape_chose_is_judged_against_the_training_distance_or_the_arms() {
+    let db = database(true);
+    let views = db.views().len();
+    let response: Vec<u8> = (0..views)
+        .flat_map(|v| (v as f32 / views as f32).to_ne_bytes())
+        .collect();
+    // A fit the shape chose that explains the region clearly, the object
+    // `distance_m` ahead of the camera.
+    let fitted = |distance_m: f32| {
+        let mut p = posed();
+        if let Outcome::Done(e) = &mut p.pose {
+            e.shape = Outcome::Done(ShapeFit {
+                rotation: [0.0, 0.0, 0.0, 1.0],
+                translation_m: [0.0, 0.0, distance_m],
+                separation: 0.8,
+                overlap: 0.9,
+                region_edge: 0.95,
+                contour_edges: 0.9,
+                in_frame: 1.0,
+                score: 5.0,
+                rival_score: 4.0,
+                candidates: 12,
+                anchored: 0,
+                colour_view_deg: [f32::NAN; 3],
+                covariance: [0.0; 21],
+            });
+        }
+        p
+    };
+    let judged = |settings: &StageSettings, distance_m: f32| {
+        let mut confidence = Confidence::new(&db, settings).unwrap();
+        let mut counters = StageCounters::new(StageId::Confidence);
+        let posed = fitted(distance_m);
+        let rated = step(
+            &mut confidence,
+            &posed,
+            &response,
+            &[],
+            &mut [],
+            0,
+            &mut counters,
+        );
+        rated.rating.verdict().expect("rated")
+    };
+    // No distance from the arm: the training distance sets the bar.
+    let unknown = StageSettings {
+        distance_m: None,
+        ..settings(false)
+    };
+    let bar = acch_confidence::MAX_DISTANCE_RATIO * db.train_distance_m;
+    let near = judged(&unknown, 0.99 * bar);
+    assert!(near.accepted && near.verified == 1, "{near:?}");
+    let far = judged(&unknown, 1.01 * bar);
+    assert!(!far.accepted && !far.shape_near(), "{far:?}");
+    assert_eq!(far.max_distance_m, bar);
+    // The arm reports the object twice as far: the bar follows it.
+    let arm = StageSettings {
+        distance_m: Some(2.0 * db.train_distance_m as f64),
+        ..settings(false)
+    };
+    assert!(judged(&arm, 1.01 * bar).accepted);
 }
 
 #[test]
